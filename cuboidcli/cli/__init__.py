@@ -1,0 +1,1 @@
+"""Command-line interface: parses options, builds configs, calls the library, prints."""

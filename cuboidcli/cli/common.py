@@ -1,0 +1,48 @@
+"""Shared console, error exit and option helpers for every subcommand."""
+
+from __future__ import annotations
+
+import warnings
+from contextlib import contextmanager
+
+import typer
+from rich.console import Console
+
+console = Console(stderr=True)
+out = Console()
+
+
+def fail(message: str, code: int = 2) -> None:
+    """Print a one-line error and exit with ``code``."""
+    console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    raise typer.Exit(code)
+
+
+@contextmanager
+def user_errors():
+    """Turn library input errors into one-line messages with exit code 2; show warnings in yellow."""
+    from cuboidcli.io.depth import InputError
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            yield
+        except InputError as e:
+            fail(str(e))
+        except FileNotFoundError as e:
+            fail(str(e))
+        finally:
+            for w in caught:
+                console.print(f"[yellow]warning:[/] {w.message}", highlight=False, soft_wrap=True)
+
+
+def resolve_device(device: str) -> str:
+    import torch
+
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device == "cuda" and not torch.cuda.is_available():
+        fail("--device cuda: no CUDA device is available; use --device cpu or auto")
+    if device not in ("cpu", "cuda"):
+        fail(f"--device {device!r}: choose auto, cpu or cuda")
+    return device

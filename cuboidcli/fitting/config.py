@@ -1,0 +1,63 @@
+"""Settings of the estimator, with the paper's symbols and units. Defaults are the paper's NYU values."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+
+@dataclass(frozen=True)
+class FitConfig:
+    hypotheses: int = 4096
+    """|H|: cuboid hypotheses sampled per step (4096 at test time, 32 in training)."""
+    max_cuboids: int = 8
+    """Upper bound on |M|, the number of cuboids returned."""
+    min_set: int = 6
+    """C: points per minimal set, drawn with replacement (Sec. 3.3)."""
+    tau_sq_m2: float = 0.004
+    """tau: inlier threshold on the SQUARED distance, m^2 (0.004 m^2 ~ 6.3 cm); 0.04 outdoors."""
+    beta: float = 5.0
+    """beta: softness of the sigmoid inlier function f_I."""
+    tau_c_sq_m2: float | None = None
+    """tau_c: where the occlusion penalty f_O turns linear, m^2; None = 2 * tau (the paper's test value)."""
+    theta: float | None = None
+    """Theta: minimum inlier-count gain for a cuboid to be added; None = 9 ln n (n = fitting points)."""
+    grid_step: int = 8
+    """Fitting points are every grid_step-th pixel of the depth map (8 -> 60x80 at 480x640)."""
+    occlusion_aware: bool = True
+    """Score with the occlusion-aware inlier count (OAI); False = plain inliers (the no-OAI baselines)."""
+    sampler: str = "uniform"
+    """uniform | sequential (weights 1 - max(state, 0), the Sequential RANSAC baseline) | learned."""
+    solver: str = "numerical"
+    """numerical (PCA + Adam) | neural (regression network) | onnx."""
+    a_min: float = 1e-3
+    """a_min: smallest cuboid half-size, m."""
+    a_max: float = 2.0
+    """a_max: largest cuboid half-size, m."""
+    solver_lr: float = 0.01
+    """Learning rate of the numerical solver's Adam (0.01 NYU, 0.5 outdoors)."""
+    solver_iters: int = 50
+    """Adam iterations of the numerical solver."""
+    prescore_points: int = 0
+    """Fast path: if > 0, score all hypotheses on this many random points first and rescore only the
+    best ``rescore_top`` on all points. 0 = exact scoring of every hypothesis on every point."""
+    rescore_top: int = 64
+    """Hypotheses rescored on all points when the fast path is on."""
+    seed: int = 0
+    """Seed of the sampler's random generator; the same seed gives the same cuboids."""
+    device: str = "cpu"
+    """cpu or cuda."""
+
+    @property
+    def tau_c(self) -> float:
+        return 2.0 * self.tau_sq_m2 if self.tau_c_sq_m2 is None else self.tau_c_sq_m2
+
+    def theta_for(self, n_points: int) -> float:
+        return 9.0 * math.log(max(n_points, 2)) if self.theta is None else self.theta
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+#: Outdoor settings of the paper's SMH experiments.
+OUTDOOR = dict(tau_sq_m2=0.04, a_min=2.0, a_max=30.0, solver_lr=0.5)

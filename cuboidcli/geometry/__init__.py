@@ -1,0 +1,1 @@
+"""Differentiable geometry kernels (torch): rotations, point-to-cuboid distances, occlusion, inliers."""

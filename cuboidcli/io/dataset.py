@@ -1,0 +1,136 @@
+"""The generic dataset folder layout read by ``cuboids evaluate`` / ``cuboids train`` and written by
+``cuboids synth``.
+
+Layout (the names of frames are file stems)::
+
+    DATASET/
+      cameras.json          {"<name>": {"fx", "fy", "cx", "cy", "width", "height", "depth_scale"}, ...}
+                            (or camera.json: one entry for all frames)
+      depth/<name>.png      uint16 depth, depth_scale metres per unit (default 0.001); or .npy in metres
+      rgb/<name>.png|.jpg   optional colour image, registered to depth
+      cuboids/<name>.json   optional ground-truth cuboids ("cuboids/1")
+      instances/<name>.png  optional per-pixel instance ids (uint16, 0 = none)
+      splits.json           optional {"train": [names], "val": [...], "test": [...]}
+
+A flat folder with ``<name>_depth.png`` and ``<name>_rgb.(png|jpg)`` next to ``cameras.json`` /
+``camera.json`` (as in the sample frames of the NYU/TUM demos) is read as well.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cuboidcli.camera import Camera
+from cuboidcli.io.atomic import atomic_write_json
+from cuboidcli.io.depth import InputError, read_depth, read_rgb
+
+DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
+RGB_SUFFIXES = (".png", ".jpg", ".jpeg")
+
+
+@dataclass(frozen=True)
+class Frame:
+    """One frame of a dataset folder; files are read on demand."""
+
+    name: str
+    depth_path: Path
+    camera: Camera
+    depth_scale: float = 0.001
+    rgb_path: Path | None = None
+    cuboids_path: Path | None = None
+    instances_path: Path | None = None
+
+    def depth_m(self) -> np.ndarray:
+        return read_depth(self.depth_path, self.depth_scale)
+
+    def rgb(self) -> np.ndarray | None:
+        return None if self.rgb_path is None else read_rgb(self.rgb_path)
+
+    def gt_cuboids(self):
+        from cuboidcli.io.result import read_result
+
+        return None if self.cuboids_path is None else read_result(self.cuboids_path).cuboids
+
+
+def _load_cameras(root: Path) -> tuple[dict[str, dict], dict | None]:
+    per_frame: dict[str, dict] = {}
+    shared = None
+    for fname in ("cameras.json", "camera.json"):
+        p = root / fname
+        if p.is_file():
+            try:
+                d = json.loads(p.read_text(encoding="utf-8"))
+            except json.JSONDecodeError as e:
+                raise InputError(f"{p} is not valid JSON ({e.msg} at line {e.lineno})") from e
+            if "fx" in d:
+                shared = d
+            else:
+                per_frame.update({k: v for k, v in d.items() if isinstance(v, dict) and "fx" in v})
+    return per_frame, shared
+
+
+def _find(folder: Path, stem: str, suffixes) -> Path | None:
+    for s in suffixes:
+        p = folder / f"{stem}{s}"
+        if p.is_file():
+            return p
+    return None
+
+
+def list_frames(root: str | os.PathLike, split: str | None = None) -> list[Frame]:
+    """Frames of a dataset folder, sorted by name (optionally those of one split)."""
+    root = Path(root)
+    if not root.is_dir():
+        raise InputError(f"dataset folder not found: {root}")
+    per_frame, shared = _load_cameras(root)
+    entries: list[tuple[str, Path, Path | None]] = []
+    if (root / "depth").is_dir():
+        for p in sorted((root / "depth").iterdir()):
+            if p.suffix.lower() in DEPTH_SUFFIXES:
+                entries.append((p.stem, p, _find(root / "rgb", p.stem, RGB_SUFFIXES)))
+    else:
+        for p in sorted(root.iterdir()):
+            stem = p.stem
+            for tag in ("_depth_filled", "_depth"):
+                if stem.endswith(tag) and p.suffix.lower() in DEPTH_SUFFIXES:
+                    name = stem[: -len(tag)]
+                    entries.append((name, p, _find(root, f"{name}_rgb", RGB_SUFFIXES)))
+                    break
+        # prefer the in-painted map when both raw and filled exist
+        names = [e[0] for e in entries]
+        entries = [e for e in entries if names.count(e[0]) == 1 or "_depth_filled" in e[1].stem]
+    if not entries:
+        raise InputError(f"no depth maps in {root} (expected depth/<name>.png or <name>_depth.png)")
+    frames = []
+    for name, dpath, rpath in entries:
+        cam = per_frame.get(name, shared)
+        if cam is None:
+            raise InputError(f"no intrinsics for frame {name!r}: add it to {root / 'cameras.json'}")
+        if "width" not in cam or "height" not in cam:
+            raise InputError(f"intrinsics of frame {name!r} lack width/height")
+        frames.append(Frame(
+            name=name, depth_path=dpath, camera=Camera.from_dict(cam),
+            depth_scale=float(cam.get("depth_scale", 0.001)), rgb_path=rpath,
+            cuboids_path=_find(root / "cuboids", name, (".json",)),
+            instances_path=_find(root / "instances", name, (".png",)),
+        ))
+    if split is not None:
+        sp = root / "splits.json"
+        if not sp.is_file():
+            raise InputError(f"--split {split}: {root} has no splits.json")
+        splits = json.loads(sp.read_text(encoding="utf-8"))
+        if split not in splits:
+            raise InputError(f"--split {split}: splits.json has only {', '.join(splits)}")
+        wanted = set(splits[split])
+        frames = [f for f in frames if f.name in wanted]
+    return frames
+
+
+def write_cameras(root: str | os.PathLike, cameras: dict[str, Camera], depth_scale: float = 0.001) -> Path:
+    d = {name: {**cam.to_dict(), "depth_scale": depth_scale} for name, cam in sorted(cameras.items())}
+    return atomic_write_json(Path(root) / "cameras.json", d)

@@ -1,0 +1,205 @@
+"""Reading depth maps, RGB images and intrinsics, with sanity checks a user can act on.
+
+Depth files: 16-bit PNG (scaled by ``depth_scale`` metres per unit), ``.npy`` / ``.npz`` in metres,
+``.exr`` in metres (needs OpenCV built with OpenEXR; set OPENCV_IO_ENABLE_OPENEXR=1). 0, NaN and inf
+mean missing. Every problem raises :class:`InputError` with a one-line message.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cuboidcli.camera import PRESETS, Camera, valid_depth
+
+
+class InputError(ValueError):
+    """A problem with the user's input; the message is one line saying what to pass instead."""
+
+
+class InputWarning(UserWarning):
+    """Suspicious but usable input."""
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Camera intrinsics as given by the user; width/height and depth_scale may be unknown (None)."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int | None = None
+    height: int | None = None
+    depth_scale: float | None = None
+    source: str = ""
+
+    def camera(self, width: int, height: int) -> Camera:
+        return Camera(self.fx, self.fy, self.cx, self.cy, int(width), int(height))
+
+
+def _imread_unchanged(path: Path) -> np.ndarray:
+    import cv2
+
+    data = np.fromfile(str(path), dtype=np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if img is None:
+        raise InputError(f"cannot decode image {path} (corrupt or not an image file)")
+    return img
+
+
+def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarray:
+    """Depth map in metres, float32 (H, W); missing values become 0."""
+    path = Path(path)
+    if not path.exists():
+        raise InputError(f"depth file not found: {path}")
+    if not path.is_file():
+        raise InputError(f"depth path is not a file: {path}")
+    suffix = path.suffix.lower()
+    try:
+        if suffix == ".npy":
+            depth = np.load(path, allow_pickle=False)
+        elif suffix == ".npz":
+            with np.load(path, allow_pickle=False) as z:
+                key = "depth" if "depth" in z.files else (z.files[0] if z.files else None)
+                if key is None:
+                    raise InputError(f"{path} holds no arrays; save the depth map as np.savez(f, depth=...)")
+                depth = z[key]
+        elif suffix == ".exr":
+            os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
+            depth = _imread_unchanged(path)
+        else:
+            depth = _imread_unchanged(path)
+    except InputError:
+        raise
+    except (ValueError, OSError) as e:
+        raise InputError(f"cannot read depth file {path}: {e}") from e
+    if depth.ndim == 3:
+        if depth.shape[2] == 1 or (suffix == ".exr"):
+            depth = depth[..., 0]
+        else:
+            raise InputError(f"{path} has {depth.shape[2]} channels; a depth map has one (is this the RGB image?)")
+    if depth.ndim != 2:
+        raise InputError(f"{path} has shape {depth.shape}; expected a 2-D depth map")
+    if np.issubdtype(depth.dtype, np.integer):
+        if depth.dtype == np.uint8:
+            raise InputError(f"{path} is an 8-bit image; depth must be a 16-bit PNG (or .npy/.npz in metres)")
+        depth = depth.astype(np.float32) * np.float32(depth_scale)
+    else:
+        depth = depth.astype(np.float32)
+    depth[~valid_depth(depth)] = 0.0
+    return depth
+
+
+def read_rgb(path: str | os.PathLike) -> np.ndarray:
+    """RGB image (H, W, 3) uint8."""
+    import cv2
+
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"image file not found: {path}")
+    img = _imread_unchanged(path)
+    if img.ndim == 2:
+        img = np.repeat(img[..., None], 3, axis=2)
+    if img.dtype != np.uint8:
+        if img.dtype == np.uint16 and img.ndim == 3:
+            img = (img / 257).astype(np.uint8)
+        else:
+            raise InputError(f"{path} is not an 8-bit colour image (dtype {img.dtype}); did you pass the depth map?")
+    if img.shape[2] == 4:
+        img = img[..., :3]
+    return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+
+
+def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | None = None) -> Intrinsics:
+    """Intrinsics from ``fx,fy,cx,cy``, a JSON file, or a preset name.
+
+    A JSON file holds keys fx, fy, cx, cy (optionally width, height, depth_scale), or a mapping from frame
+    names to such entries (as ``cameras.json`` of a dataset folder); ``frame`` selects the entry.
+    """
+    if spec is None:
+        name = preset or "nyu"
+        if name not in PRESETS:
+            raise InputError(f"unknown preset {name!r}; choose one of: {', '.join(PRESETS)}")
+        p = PRESETS[name]
+        return Intrinsics(p["fx"], p["fy"], p["cx"], p["cy"], int(p["width"]), int(p["height"]),
+                          p["depth_scale"], source=f"preset:{name}")
+    path = Path(spec)
+    if spec.lower().endswith(".json") or path.is_file():
+        if not path.is_file():
+            raise InputError(f"intrinsics file not found: {path}")
+        try:
+            d = json.loads(path.read_text(encoding="utf-8"))
+        except json.JSONDecodeError as e:
+            raise InputError(f"intrinsics file {path} is not valid JSON ({e.msg} at line {e.lineno})") from e
+        if isinstance(d, dict) and "fx" not in d:
+            entries = {k: v for k, v in d.items() if isinstance(v, dict) and "fx" in v}
+            if frame is not None and frame in entries:
+                d = entries[frame]
+            elif len(entries) == 1:
+                d = next(iter(entries.values()))
+            elif entries:
+                raise InputError(f"{path} holds intrinsics for several frames ({', '.join(sorted(entries)[:4])}, "
+                                 f"...); none is named {frame!r}")
+        try:
+            return Intrinsics(float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]),
+                              int(d["width"]) if "width" in d else None, int(d["height"]) if "height" in d else None,
+                              float(d["depth_scale"]) if "depth_scale" in d else None, source=str(path))
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(f"intrinsics file {path} must hold numbers fx, fy, cx, cy (missing or bad: {e})") from e
+    parts = spec.replace(" ", "").split(",")
+    if len(parts) != 4:
+        raise InputError(f"--intrinsics {spec!r}: give fx,fy,cx,cy in pixels (4 numbers), a JSON file or a preset")
+    try:
+        fx, fy, cx, cy = (float(p) for p in parts)
+    except ValueError as e:
+        raise InputError(f"--intrinsics {spec!r}: fx,fy,cx,cy must be numbers") from e
+    return Intrinsics(fx, fy, cx, cy, source="command line")
+
+
+def check_inputs(depth_m: np.ndarray, intr: Intrinsics, rgb_shape: tuple[int, ...] | None = None) -> list[str]:
+    """Sanity checks; raises InputError for unusable input, returns warnings (one line each)."""
+    h, w = depth_m.shape
+    notes: list[str] = []
+    valid = valid_depth(depth_m)
+    n_valid = int(valid.sum())
+    if n_valid == 0:
+        raise InputError("the depth map has no valid pixels (all zero, NaN or inf)")
+    if n_valid < 0.01 * h * w:
+        notes.append(f"only {100.0 * n_valid / (h * w):.1f} % of depth pixels are valid")
+    med = float(np.median(depth_m[valid]))
+    if med > 100.0:
+        raise InputError(f"median depth is {med:.0f} m: the depth unit looks wrong (millimetres read as metres?); "
+                         "pass --depth-scale 0.001 for millimetre PNGs or --preset tum for 1/5000 m")
+    if med < 0.05:
+        raise InputError(f"median depth is {med * 1000:.1f} mm: the depth unit looks wrong; check --depth-scale "
+                         "(0.001 for millimetre PNGs, 0.0002 for TUM)")
+    if med > 30.0:
+        notes.append(f"median depth is {med:.1f} m: unusually far for an indoor scene; check --depth-scale")
+    if intr.fx <= 0 or intr.fy <= 0:
+        raise InputError(f"focal lengths must be positive (fx={intr.fx}, fy={intr.fy})")
+    if intr.fx < 0.1 * w and intr.fx < 50:
+        raise InputError(f"fx = {intr.fx:g} looks like a focal length in millimetres; give it in pixels "
+                         f"(about {0.8 * w:.0f} for a {w}-pixel-wide Kinect image)")
+    if intr.fx > 20 * w:
+        notes.append(f"fx = {intr.fx:g} px is very long for a {w}-pixel-wide image")
+    if not (-0.5 * w <= intr.cx <= 1.5 * w) or not (-0.5 * h <= intr.cy <= 1.5 * h):
+        raise InputError(f"principal point ({intr.cx:g}, {intr.cy:g}) is far outside the {w}x{h} image; "
+                         "check the order fx,fy,cx,cy and the image size")
+    if intr.width is not None and intr.height is not None and (intr.width, intr.height) != (w, h):
+        notes.append(f"intrinsics are for {intr.width}x{intr.height} but the depth map is {w}x{h}; "
+                     "using them unscaled")
+    if rgb_shape is not None and tuple(rgb_shape[:2]) != (h, w):
+        raise InputError(f"RGB image is {rgb_shape[1]}x{rgb_shape[0]} but the depth map is {w}x{h}; "
+                         "they must be registered and the same size")
+    return notes
+
+
+def warn_all(notes: list[str]) -> None:
+    for n in notes:
+        warnings.warn(n, InputWarning, stacklevel=2)
