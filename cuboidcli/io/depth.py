@@ -139,6 +139,10 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
             raise InputError(f"intrinsics file {path} is not valid JSON ({e.msg} at line {e.lineno})") from e
         if isinstance(d, dict) and "fx" not in d:
             entries = {k: v for k, v in d.items() if isinstance(v, dict) and "fx" in v}
+            if frame is not None:
+                for tag in ("_depth_filled", "_depth_raw", "_depth"):
+                    if frame not in entries and frame.endswith(tag):
+                        frame = frame[: -len(tag)]
             if frame is not None and frame in entries:
                 d = entries[frame]
             elif len(entries) == 1:
