@@ -78,8 +78,10 @@ class Camera:
         Invalid depth stays NaN/0 in z; callers mask with :func:`valid_depth`.
         """
         if depth_m.shape != (self.height, self.width):
-            raise ValueError(f"depth map is {depth_m.shape[1]}x{depth_m.shape[0]} but the camera is "
-                             f"{self.width}x{self.height}")
+            raise ValueError(
+                f"depth map is {depth_m.shape[1]}x{depth_m.shape[0]} but the camera is "
+                f"{self.width}x{self.height}"
+            )
         z = depth_m[::step, ::step].astype(np.float64)
         u, v = self.pixel_grid(step)
         x = (u - self.cx) / self.fx * z

@@ -18,9 +18,22 @@ from cuboidcli.geometry.rotations import matrix_to_quaternion, quaternion_to_mat
 
 #: Distinct colours (RGB) shared by every output (JSON, overlays, GLB, PLY), in selection order.
 PALETTE: tuple[tuple[int, int, int], ...] = (
-    (230, 25, 75), (60, 180, 75), (67, 99, 216), (245, 130, 49), (145, 30, 180), (70, 240, 240),
-    (240, 50, 230), (188, 246, 12), (250, 190, 190), (0, 128, 128), (154, 99, 36), (255, 225, 25),
-    (128, 0, 0), (170, 255, 195), (128, 128, 0), (0, 0, 117),
+    (230, 25, 75),
+    (60, 180, 75),
+    (67, 99, 216),
+    (245, 130, 49),
+    (145, 30, 180),
+    (70, 240, 240),
+    (240, 50, 230),
+    (188, 246, 12),
+    (250, 190, 190),
+    (0, 128, 128),
+    (154, 99, 36),
+    (255, 225, 25),
+    (128, 0, 0),
+    (170, 255, 195),
+    (128, 128, 0),
+    (0, 0, 117),
 )
 
 
@@ -53,7 +66,7 @@ class Cuboid:
         return cls(center, half_size, R, **kw)
 
     def corners(self) -> np.ndarray:
-        """(8, 3) corners in camera coordinates; corner k has local signs (sx, sy, sz) from product([-1, 1])."""
+        """(8, 3) corners in camera coordinates; corner k has local signs product((-1, 1), repeat=3)[k]."""
         signs = np.array(list(product((-1.0, 1.0), repeat=3)))
         return (signs * self.half_size) @ self.rotation.T + self.center
 
@@ -89,8 +102,11 @@ class Cuboid:
 def stack_cuboids(cuboids: list[Cuboid], dtype=torch.float32, device="cpu") -> tuple[torch.Tensor, ...]:
     """List of cuboids -> (centres (M, 3), half-sizes (M, 3), rotations (M, 3, 3)) tensors."""
     if not cuboids:
-        return (torch.zeros(0, 3, dtype=dtype, device=device), torch.zeros(0, 3, dtype=dtype, device=device),
-                torch.zeros(0, 3, 3, dtype=dtype, device=device))
+        return (
+            torch.zeros(0, 3, dtype=dtype, device=device),
+            torch.zeros(0, 3, dtype=dtype, device=device),
+            torch.zeros(0, 3, 3, dtype=dtype, device=device),
+        )
     c = torch.as_tensor(np.stack([b.center for b in cuboids]), dtype=dtype, device=device)
     a = torch.as_tensor(np.stack([b.half_size for b in cuboids]), dtype=dtype, device=device)
     R = torch.as_tensor(np.stack([b.rotation for b in cuboids]), dtype=dtype, device=device)

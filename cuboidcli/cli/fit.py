@@ -5,7 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    SpinnerColumn,
+    TextColumn,
+    TimeElapsedColumn,
+)
 from rich.table import Table
 
 from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
@@ -27,9 +34,18 @@ def _config(hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_
         fail(f"--sampler {sampler!r}: choose uniform, sequential or learned")
     if solver not in ("numerical", "neural", "onnx"):
         fail(f"--solver {solver!r}: choose numerical, neural or onnx")
-    return FitConfig(hypotheses=hypotheses, max_cuboids=max_cuboids, sampler=sampler, solver=solver, seed=seed,
-                     device=resolve_device(device), theta=theta, grid_step=grid_step, occlusion_aware=not no_oai,
-                     prescore_points=600 if fast else 0)
+    return FitConfig(
+        hypotheses=hypotheses,
+        max_cuboids=max_cuboids,
+        sampler=sampler,
+        solver=solver,
+        seed=seed,
+        device=resolve_device(device),
+        theta=theta,
+        grid_step=grid_step,
+        occlusion_aware=not no_oai,
+        prescore_points=600 if fast else 0,
+    )
 
 
 def cuboid_table(result) -> Table:
@@ -38,8 +54,12 @@ def cuboid_table(result) -> Table:
         table.add_column(col, justify="right")
     for i, c in enumerate(result.cuboids):
         r, g, b = c.to_json(i)["color"]
-        table.add_row(f"[rgb({r},{g},{b})]■[/] {i}", ", ".join(f"{v:6.2f}" for v in c.center),
-                      ", ".join(f"{2 * v:5.2f}" for v in c.half_size), f"{c.inlier_gain:.1f}")
+        table.add_row(
+            f"[rgb({r},{g},{b})]■[/] {i}",
+            ", ".join(f"{v:6.2f}" for v in c.center),
+            ", ".join(f"{2 * v:5.2f}" for v in c.half_size),
+            f"{c.inlier_gain:.1f}",
+        )
     return table
 
 
@@ -50,10 +70,19 @@ def _fit_one(depth, image, intrinsics, preset, depth_scale, config, weights, onn
     frame = load_frame(depth, image, intrinsics, preset, depth_scale)
     for note in frame.notes:
         console.print(f"[yellow]warning:[/] {note}", highlight=False)
-    cuboids, info = fit_depth(frame.depth_m, frame.camera, config, solver=solver, sampler=sampler,
-                              progress=progress)
-    res = make_result(frame.camera, cuboids, info, config, frame.meta, solver.name, sampler.name,
-                      {"weights": None if weights is None else str(weights), "onnx": None if onnx is None else str(onnx)})
+    cuboids, info = fit_depth(
+        frame.depth_m, frame.camera, config, solver=solver, sampler=sampler, progress=progress
+    )
+    res = make_result(
+        frame.camera,
+        cuboids,
+        info,
+        config,
+        frame.meta,
+        solver.name,
+        sampler.name,
+        {"weights": None if weights is None else str(weights), "onnx": None if onnx is None else str(onnx)},
+    )
     return res, frame, info
 
 
@@ -65,32 +94,56 @@ def _write(res, frame, out_json: Path, glb: bool, ply: bool, overlay: bool, with
         from cuboidcli.export import write_outputs
 
         stem = out_json.with_name(out_json.name.removesuffix(".json"))
-        paths = write_outputs(res, stem, depth_m=frame.depth_m, rgb=frame.rgb, glb=glb, ply=ply, overlay=overlay,
-                              with_points=with_points)
+        paths = write_outputs(
+            res,
+            stem,
+            depth_m=frame.depth_m,
+            rgb=frame.rgb,
+            glb=glb,
+            ply=ply,
+            overlay=overlay,
+            with_points=with_points,
+        )
         written += list(paths.values())
     return written
 
 
 def fit(
     image: Path = typer.Argument(None, help="RGB image (optional with --depth; used for overlays)."),
-    depth: Path = typer.Option(None, "--depth", "-d", help="Depth map (16-bit PNG, .npy/.npz in metres, .exr) "
-                               "or a folder of depth maps."),
+    depth: Path = typer.Option(
+        None,
+        "--depth",
+        "-d",
+        help="Depth map (16-bit PNG, .npy/.npz in metres, .exr) or a folder of depth maps.",
+    ),
     intrinsics: str = typer.Option(None, "--intrinsics", "-K", help="fx,fy,cx,cy in pixels, or a JSON file."),
-    preset: str = typer.Option(None, "--preset", help="Camera preset: nyu, tum or scannet (intrinsics + depth scale)."),
-    depth_scale: float = typer.Option(None, "--depth-scale", help="Metres per depth-PNG unit [default: 0.001]."),
-    output: Path = typer.Option(None, "--output", "-o", help="Output JSON (or folder for a folder of depth maps)."),
+    preset: str = typer.Option(
+        None, "--preset", help="Camera preset: nyu, tum or scannet (intrinsics + depth scale)."
+    ),
+    depth_scale: float = typer.Option(
+        None, "--depth-scale", help="Metres per depth-PNG unit [default: 0.001]."
+    ),
+    output: Path = typer.Option(
+        None, "--output", "-o", help="Output JSON (or folder for a folder of depth maps)."
+    ),
     hypotheses: int = typer.Option(4096, "--hypotheses", help="Cuboid hypotheses per step |H|."),
     max_cuboids: int = typer.Option(8, "--max-cuboids", help="At most this many cuboids."),
-    sampler: str = typer.Option("uniform", "--sampler", help="uniform | sequential | learned."),
+    sampler: str = typer.Option("sequential", "--sampler", help="sequential | uniform | learned."),
     solver: str = typer.Option("numerical", "--solver", help="numerical | neural | onnx."),
-    weights: Path = typer.Option(None, "--weights", help="Folder with network weights [default: shipped models/]."),
+    weights: Path = typer.Option(
+        None, "--weights", help="Folder with network weights [default: shipped models/]."
+    ),
     onnx: Path = typer.Option(None, "--onnx", help="ONNX solver file for --solver onnx."),
     seed: int = typer.Option(0, "--seed", help="Random seed; the same seed gives the same cuboids."),
     device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
     theta: float = typer.Option(None, "--theta", help="Minimum inlier gain per cuboid [default: 9 ln n]."),
     grid_step: int = typer.Option(8, "--grid-step", help="Fit on every n-th pixel (8 -> 60x80 at 480x640)."),
-    no_oai: bool = typer.Option(False, "--no-oai", help="Plain inlier counting (the paper's no-OAI baselines)."),
-    fast: bool = typer.Option(False, "--fast", help="Approximate scoring: rank hypotheses on 600 points first."),
+    no_oai: bool = typer.Option(
+        False, "--no-oai", help="Plain inlier counting (the paper's no-OAI baselines)."
+    ),
+    fast: bool = typer.Option(
+        False, "--fast", help="Approximate scoring: rank hypotheses on 600 points first."
+    ),
     glb: bool = typer.Option(False, "--glb", help="Also write <out>.glb."),
     ply: bool = typer.Option(False, "--ply", help="Also write <out>_points.ply and <out>_cuboids.ply."),
     overlay: bool = typer.Option(False, "--overlay", help="Also write overlay, label and panel PNGs."),
@@ -117,33 +170,82 @@ def fit(
         if config.device == "cpu":
             ensure_compiled()
         if depth.is_dir():
-            _fit_folder(depth, intrinsics, preset, depth_scale, output, config, weights, onnx, solver_obj,
-                        sampler_obj, glb, ply, overlay, with_points, quiet)
+            _fit_folder(
+                depth,
+                intrinsics,
+                preset,
+                depth_scale,
+                output,
+                config,
+                weights,
+                onnx,
+                solver_obj,
+                sampler_obj,
+                glb,
+                ply,
+                overlay,
+                with_points,
+                quiet,
+            )
             return
         if image is not None and not image.exists():
             fail(f"image file not found: {image}")
         out_json = output or Path(f"{depth.stem}_cuboids.json")
-        with Progress(SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
-                      transient=True, disable=quiet) as prog:
+        with Progress(
+            SpinnerColumn(),
+            TextColumn("{task.description}"),
+            TimeElapsedColumn(),
+            console=console,
+            transient=True,
+            disable=quiet,
+        ) as prog:
             task = prog.add_task("fitting: step 1", total=None)
 
             def step(it, n, gain):
                 prog.update(task, description=f"fitting: step {it + 1}, {n} cuboids (last gain {gain:.0f})")
 
-            res, frame, info = _fit_one(depth, image, intrinsics, preset, depth_scale, config, weights, onnx,
-                                        solver_obj, sampler_obj, step)
+            res, frame, info = _fit_one(
+                depth,
+                image,
+                intrinsics,
+                preset,
+                depth_scale,
+                config,
+                weights,
+                onnx,
+                solver_obj,
+                sampler_obj,
+                step,
+            )
         written = _write(res, frame, out_json, glb, ply, overlay, with_points)
     if not quiet:
         out.print(cuboid_table(res))
         t = info.timing_s
-        out.print(f"fitted {len(res.cuboids)} cuboids to {info.n_points} points in {t['total']:.2f} s "
-                  f"(solve {t['solve']:.2f} s, score {t['score']:.2f} s; stop: {info.stop_reason})")
+        out.print(
+            f"fitted {len(res.cuboids)} cuboids to {info.n_points} points in {t['total']:.2f} s "
+            f"(solve {t['solve']:.2f} s, score {t['score']:.2f} s; stop: {info.stop_reason})"
+        )
         for p in written:
             out.print(f"wrote {p}")
 
 
-def _fit_folder(folder, intrinsics, preset, depth_scale, output, config, weights, onnx, solver_obj, sampler_obj,
-                glb, ply, overlay, with_points, quiet):
+def _fit_folder(
+    folder,
+    intrinsics,
+    preset,
+    depth_scale,
+    output,
+    config,
+    weights,
+    onnx,
+    solver_obj,
+    sampler_obj,
+    glb,
+    ply,
+    overlay,
+    with_points,
+    quiet,
+):
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in DEPTH_SUFFIXES and p.is_file())
     if not files:
         fail(f"no depth maps (*.png, *.npy, *.npz, *.exr) in {folder}")
@@ -153,18 +255,38 @@ def _fit_folder(folder, intrinsics, preset, depth_scale, output, config, weights
     if intrinsics is None and (folder / "cameras.json").is_file():
         intrinsics = str(folder / "cameras.json")
     failures = 0
-    with Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-                  console=console, disable=quiet) as prog:
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeElapsedColumn(),
+        console=console,
+        disable=quiet,
+    ) as prog:
         task = prog.add_task("fitting", total=len(files))
         for f in files:
             from cuboidcli.io.depth import InputError
 
             try:
-                res, frame, info = _fit_one(f, None, intrinsics, preset, depth_scale, config, weights, onnx,
-                                            solver_obj, sampler_obj, None)
+                res, frame, info = _fit_one(
+                    f,
+                    None,
+                    intrinsics,
+                    preset,
+                    depth_scale,
+                    config,
+                    weights,
+                    onnx,
+                    solver_obj,
+                    sampler_obj,
+                    None,
+                )
                 _write(res, frame, out_dir / f"{f.stem}_cuboids.json", glb, ply, overlay, with_points)
-                prog.update(task, advance=1, description=f"{f.name}: {len(res.cuboids)} cuboids, "
-                                                         f"{info.timing_s['total']:.2f} s")
+                prog.update(
+                    task,
+                    advance=1,
+                    description=f"{f.name}: {len(res.cuboids)} cuboids, {info.timing_s['total']:.2f} s",
+                )
             except InputError as e:
                 failures += 1
                 console.print(f"[red]skipped[/] {f.name}: {e}", highlight=False)
@@ -184,10 +306,31 @@ def demo(
     depth = SAMPLE_DIR / "sample_depth.png"
     if not depth.is_file():
         fail(f"the embedded sample is missing from {SAMPLE_DIR}; reinstall the package")
-    fit(image=SAMPLE_DIR / "sample.png", depth=depth, intrinsics=str(SAMPLE_DIR / "camera.json"), preset=None,
-        depth_scale=None, output=output / "sample_cuboids.json", hypotheses=4096, max_cuboids=8,
-        sampler="uniform", solver="numerical", weights=None, onnx=None, seed=seed, device=device, theta=None,
-        grid_step=8, no_oai=False, fast=False, glb=True, ply=True, overlay=True, with_points=True, quiet=False)
+    fit(
+        image=SAMPLE_DIR / "sample.png",
+        depth=depth,
+        intrinsics=str(SAMPLE_DIR / "camera.json"),
+        preset=None,
+        depth_scale=None,
+        output=output / "sample_cuboids.json",
+        hypotheses=4096,
+        max_cuboids=8,
+        sampler="uniform",
+        solver="numerical",
+        weights=None,
+        onnx=None,
+        seed=seed,
+        device=device,
+        theta=None,
+        grid_step=8,
+        no_oai=False,
+        fast=False,
+        glb=True,
+        ply=True,
+        overlay=True,
+        with_points=True,
+        quiet=False,
+    )
 
 
 def register(app: typer.Typer) -> None:

@@ -23,7 +23,9 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def main(
-    version: bool = typer.Option(False, "--version", callback=_version, is_eager=True, help="Print the version."),
+    version: bool = typer.Option(
+        False, "--version", callback=_version, is_eager=True, help="Print the version."
+    ),
 ) -> None:
     """cuboids: robust cuboid fitting for 3D scene abstraction."""
 
@@ -32,6 +34,15 @@ def main(
 from cuboidcli.cli import fit as _fit  # noqa: E402
 
 _fit.register(app)
+from cuboidcli.cli import export as _export  # noqa: E402
+
+_export.register(app)
+from cuboidcli.cli import evaluate as _evaluate  # noqa: E402
+
+_evaluate.register(app)
+from cuboidcli.cli import synth as _synth  # noqa: E402
+
+_synth.register(app)
 
 if __name__ == "__main__":
     app()

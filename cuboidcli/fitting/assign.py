@@ -10,8 +10,14 @@ NONE = -1
 OCCLUDED = -2
 
 
-def assign_points(points: np.ndarray, cuboids: list[Cuboid], tau_sq_m2: float = 0.004, beta: float = 5.0,
-                  tau_c_sq_m2: float | None = None, occlusion_aware: bool = True) -> np.ndarray:
+def assign_points(
+    points: np.ndarray,
+    cuboids: list[Cuboid],
+    tau_sq_m2: float = 0.004,
+    beta: float = 5.0,
+    tau_c_sq_m2: float | None = None,
+    occlusion_aware: bool = True,
+) -> np.ndarray:
     """Labels (N,) int32 for points (N, 3) in metres.
 
     -2 where f_OAI(y, M) < 0 (the point is hidden behind a cuboid side it does not lie on), otherwise the

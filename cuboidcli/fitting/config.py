@@ -26,8 +26,9 @@ class FitConfig:
     """Fitting points are every grid_step-th pixel of the depth map (8 -> 60x80 at 480x640)."""
     occlusion_aware: bool = True
     """Score with the occlusion-aware inlier count (OAI); False = plain inliers (the no-OAI baselines)."""
-    sampler: str = "uniform"
-    """uniform | sequential (weights 1 - max(state, 0), the Sequential RANSAC baseline) | learned."""
+    sampler: str = "sequential"
+    """uniform | sequential (weights 1 - max(state, 0): Sequential RANSAC, points already explained are
+    drawn less) | learned (the sampling-weight network, Sec. 3.2.1)."""
     solver: str = "numerical"
     """numerical (PCA + Adam) | neural (regression network) | onnx."""
     a_min: float = 1e-3
@@ -43,6 +44,11 @@ class FitConfig:
     best ``rescore_top`` on all points. 0 = exact scoring of every hypothesis on every point."""
     rescore_top: int = 64
     """Hypotheses rescored on all points when the fast path is on."""
+    refine: bool = True
+    """Refine each selected cuboid on its inliers by minimising their occlusion-aware distance, keeping it
+    only if the inlier-count gain does not drop (fitting/refine.py). False = the paper's plain estimator."""
+    refine_max_points: int = 1024
+    """At most this many inliers (a fixed random subset) enter the refinement."""
     seed: int = 0
     """Seed of the sampler's random generator; the same seed gives the same cuboids."""
     device: str = "cpu"

@@ -11,7 +11,7 @@ from cuboidcli.camera import PRESETS, Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import FitInfo
-from cuboidcli.io.depth import Intrinsics, InputError, check_inputs, parse_intrinsics, read_depth, read_rgb
+from cuboidcli.io.depth import InputError, Intrinsics, check_inputs, parse_intrinsics, read_depth, read_rgb
 from cuboidcli.io.result import FitResult
 
 
@@ -38,8 +38,14 @@ def resolve_depth_scale(depth_scale: float | None, intr: Intrinsics, preset: str
     return 0.001
 
 
-def load_frame(depth_path: str | Path, image_path: str | Path | None = None, intrinsics: str | None = None,
-               preset: str | None = None, depth_scale: float | None = None, frame_name: str | None = None) -> FrameInput:
+def load_frame(
+    depth_path: str | Path,
+    image_path: str | Path | None = None,
+    intrinsics: str | None = None,
+    preset: str | None = None,
+    depth_scale: float | None = None,
+    frame_name: str | None = None,
+) -> FrameInput:
     """Read and check one frame. Raises InputError with a one-line message on unusable input."""
     if preset is not None and preset not in PRESETS:
         raise InputError(f"unknown --preset {preset!r}; choose one of: {', '.join(PRESETS)}")
@@ -65,10 +71,23 @@ def load_frame(depth_path: str | Path, image_path: str | Path | None = None, int
     return FrameInput(depth, camera, rgb, scale, notes, meta)
 
 
-def make_result(camera: Camera, cuboids: list[Cuboid], info: FitInfo, config: FitConfig, input_meta: dict,
-                solver_name: str, sampler_name: str, extra_settings: dict | None = None) -> FitResult:
-    settings = {**config.to_dict(), "theta_used": info.theta, "solver_name": solver_name,
-                "sampler_name": sampler_name, **(extra_settings or {})}
+def make_result(
+    camera: Camera,
+    cuboids: list[Cuboid],
+    info: FitInfo,
+    config: FitConfig,
+    input_meta: dict,
+    solver_name: str,
+    sampler_name: str,
+    extra_settings: dict | None = None,
+) -> FitResult:
+    settings = {
+        **config.to_dict(),
+        "theta_used": info.theta,
+        "solver_name": solver_name,
+        "sampler_name": sampler_name,
+        **(extra_settings or {}),
+    }
     fit_info = {
         "n_points": info.n_points,
         "iterations": info.iterations,
@@ -76,5 +95,11 @@ def make_result(camera: Camera, cuboids: list[Cuboid], info: FitInfo, config: Fi
         "rejected_gain": info.rejected_gain,
         "gains": info.gains,
     }
-    return FitResult(camera=camera, cuboids=cuboids, settings=settings, timing_s=info.timing_s,
-                     input=input_meta, extras={"fit_info": fit_info})
+    return FitResult(
+        camera=camera,
+        cuboids=cuboids,
+        settings=settings,
+        timing_s=info.timing_s,
+        input=input_meta,
+        extras={"fit_info": fit_info},
+    )

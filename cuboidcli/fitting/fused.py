@@ -30,20 +30,13 @@ def _fo(d2, beta, inv_tau, tau_c, slope, offset):
 
 
 @njit(cache=True)
-def _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, oai):
-    """f_OAI(y, {h}) of one point (local coords l) and one cuboid (half-sizes a, camera at c)."""
-    q0 = abs(l0) - a0
-    q1 = abs(l1) - a1
-    q2 = abs(l2) - a2
-    e0 = q0 * q0 if q0 > 0 else 0.0
-    e1 = q1 * q1 if q1 > 0 else 0.0
-    e2 = q2 * q2 if q2 > 0 else 0.0
-    ex = e0 + e1 + e2
-    m = min(-q0, min(-q1, -q2))
-    d2 = ex + (m * m if m > 0 else 0.0)
-    if not oai:
-        return _fi(d2, beta, inv_tau) if d2 < cutoff else 0.0
-    # Slab test of the segment y_hat -> c_hat (lambda in [0, 1]) against the box.
+def slab_occlusion(l0, l1, l2, a0, a1, a2, c0, c1, c2):
+    """Sides of the box crossing the segment from a point (local l) to the camera (local c), lambda in (0, 1).
+
+    A convex box meets the segment in one interval [lam_in, lam_out]; the entry side occludes if
+    0 < lam_in < 1 and the exit side if 0 < lam_out < 1. Returns (occ_in, axis_in, sign_in, occ_out,
+    axis_out, sign_out). Equivalent to the paper's per-plane test (Eq. 6) except on measure-zero edge hits.
+    """
     lam_in = -1e300
     lam_out = 1e300
     ax_in = -1
@@ -59,7 +52,7 @@ def _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope,
             lk, vk, ak = l2, c2 - l2, a2
         if abs(vk) < 1e-12:
             if abs(lk) > ak:
-                return _fi(d2, beta, inv_tau) if d2 < cutoff else 0.0
+                return False, -1, 0.0, False, -1, 0.0
             continue
         inv = 1.0 / vk
         t_pos = (ak - lk) * inv
@@ -72,8 +65,25 @@ def _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope,
             lam_in, ax_in, sg_in = t_near, k, s_near
         if t_far < lam_out:
             lam_out, ax_out, sg_out = t_far, k, s_far
-    occ_in = lam_in < lam_out and 0.0 < lam_in < 1.0
-    occ_out = lam_in < lam_out and 0.0 < lam_out < 1.0
+    hit = lam_in < lam_out
+    return hit and 0.0 < lam_in < 1.0, ax_in, sg_in, hit and 0.0 < lam_out < 1.0, ax_out, sg_out
+
+
+@njit(cache=True)
+def _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, oai):
+    """f_OAI(y, {h}) of one point (local coords l) and one cuboid (half-sizes a, camera at c)."""
+    q0 = abs(l0) - a0
+    q1 = abs(l1) - a1
+    q2 = abs(l2) - a2
+    e0 = q0 * q0 if q0 > 0 else 0.0
+    e1 = q1 * q1 if q1 > 0 else 0.0
+    e2 = q2 * q2 if q2 > 0 else 0.0
+    ex = e0 + e1 + e2
+    m = min(-q0, min(-q1, -q2))
+    d2 = ex + (m * m if m > 0 else 0.0)
+    if not oai:
+        return _fi(d2, beta, inv_tau) if d2 < cutoff else 0.0
+    occ_in, ax_in, sg_in, occ_out, ax_out, sg_out = slab_occlusion(l0, l1, l2, a0, a1, a2, c0, c1, c2)
     if not (occ_in or occ_out):
         return _fi(d2, beta, inv_tau) if d2 < cutoff else 0.0
     # Occluded by one or two sides. f_IO = f_I - f_O of an occluding side is negative exactly when its
@@ -161,8 +171,24 @@ def _screen(t0, t1, t2, a0, a1, a2, R, cutoff):
 
 
 @njit(parallel=True, cache=True)
-def _gains(points, uv, centers, half, rot, old, ub_suffix, threshold, beta, inv_tau, tau_c, slope, offset, cutoff,
-           oai, out):
+def _gains(
+    points,
+    uv,
+    centers,
+    half,
+    rot,
+    old,
+    ub_suffix,
+    threshold,
+    beta,
+    inv_tau,
+    tau_c,
+    slope,
+    offset,
+    cutoff,
+    oai,
+    out,
+):
     n = points.shape[0]
     for h in prange(centers.shape[0]):
         t0, t1, t2 = centers[h, 0], centers[h, 1], centers[h, 2]
@@ -193,15 +219,27 @@ def _gains(points, uv, centers, half, rot, old, ub_suffix, threshold, beta, inv_
             l0 = R[0, 0] * x + R[1, 0] * y + R[2, 0] * z
             l1 = R[0, 1] * x + R[1, 1] * y + R[2, 1] * z
             l2 = R[0, 2] * x + R[1, 2] * y + R[2, 2] * z
-            v = _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, oai)
+            v = _pair_value(
+                l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, oai
+            )
             o = old[i]
             lo = min(v, o)
             acc += (lo if lo < 0 else max(v, o)) - o
         out[h] = -np.inf if pruned else acc
 
 
-def score_gains(points, centers, half_sizes, rotations, state, tau: float, beta: float, tau_c: float,
-                occlusion_aware: bool = True, prune_below: float = -np.inf) -> np.ndarray:
+def score_gains(
+    points,
+    centers,
+    half_sizes,
+    rotations,
+    state,
+    tau: float,
+    beta: float,
+    tau_c: float,
+    occlusion_aware: bool = True,
+    prune_below: float = -np.inf,
+) -> np.ndarray:
     """Inlier-count gain of each hypothesis over the current state.
 
     points (N, 3), centers (H, 3), half_sizes (H, 3), rotations (H, 3, 3), state (N,) = f_OAI of the
@@ -222,9 +260,24 @@ def score_gains(points, centers, half_sizes, rotations, state, tau: float, beta:
     state = np.ascontiguousarray(state, f)
     ub = np.where(state < 0, 0.0, np.maximum(0.0, 1.0 - state))
     ub_suffix = np.concatenate([np.cumsum(ub[::-1])[::-1], [0.0]])
-    _gains(points, uv, np.ascontiguousarray(centers, f), np.ascontiguousarray(half_sizes, f),
-           np.ascontiguousarray(rotations, f), state, ub_suffix, float(prune_below), float(beta), 1.0 / tau,
-           float(tau_c), slope, offset, cutoff, bool(occlusion_aware), out)
+    _gains(
+        points,
+        uv,
+        np.ascontiguousarray(centers, f),
+        np.ascontiguousarray(half_sizes, f),
+        np.ascontiguousarray(rotations, f),
+        state,
+        ub_suffix,
+        float(prune_below),
+        float(beta),
+        1.0 / tau,
+        float(tau_c),
+        slope,
+        offset,
+        cutoff,
+        bool(occlusion_aware),
+        out,
+    )
     return out
 
 
@@ -244,18 +297,53 @@ def _values(points, centers, half, rot, beta, inv_tau, tau_c, slope, offset, cut
             l0 = R[0, 0] * x + R[1, 0] * y + R[2, 0] * z
             l1 = R[0, 1] * x + R[1, 1] * y + R[2, 1] * z
             l2 = R[0, 2] * x + R[1, 2] * y + R[2, 2] * z
-            out[h, i] = _pair_value(l0, l1, l2, half[h, 0], half[h, 1], half[h, 2], c0, c1, c2, beta, inv_tau,
-                                    tau_c, slope, offset, cutoff, oai)
+            out[h, i] = _pair_value(
+                l0,
+                l1,
+                l2,
+                half[h, 0],
+                half[h, 1],
+                half[h, 2],
+                c0,
+                c1,
+                c2,
+                beta,
+                inv_tau,
+                tau_c,
+                slope,
+                offset,
+                cutoff,
+                oai,
+            )
 
 
-def cuboid_values(points, centers, half_sizes, rotations, tau: float, beta: float, tau_c: float,
-                  occlusion_aware: bool = True) -> np.ndarray:
+def cuboid_values(
+    points,
+    centers,
+    half_sizes,
+    rotations,
+    tau: float,
+    beta: float,
+    tau_c: float,
+    occlusion_aware: bool = True,
+) -> np.ndarray:
     """f_OAI(y, {h}) of each cuboid on its own: (H, N) float64 (numpy in, numpy out)."""
     slope, offset = leaky_constants(tau, beta, tau_c)
     cutoff = tau * (1.0 + 40.0 / beta)
     f = np.float64
     out = np.empty((centers.shape[0], points.shape[0]), dtype=np.float64)
-    _values(np.ascontiguousarray(points, f), np.ascontiguousarray(centers, f), np.ascontiguousarray(half_sizes, f),
-            np.ascontiguousarray(rotations, f), float(beta), 1.0 / tau, float(tau_c), slope, offset, cutoff,
-            bool(occlusion_aware), out)
+    _values(
+        np.ascontiguousarray(points, f),
+        np.ascontiguousarray(centers, f),
+        np.ascontiguousarray(half_sizes, f),
+        np.ascontiguousarray(rotations, f),
+        float(beta),
+        1.0 / tau,
+        float(tau_c),
+        slope,
+        offset,
+        cutoff,
+        bool(occlusion_aware),
+        out,
+    )
     return out

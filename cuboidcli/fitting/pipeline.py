@@ -63,7 +63,9 @@ class PreparedPoints:
     depth_grid: torch.Tensor  # (Hs, Ws) metres, 0 = invalid
 
 
-def prepare_points(depth_m: np.ndarray, camera: Camera, grid_step: int, device: str = "cpu") -> PreparedPoints:
+def prepare_points(
+    depth_m: np.ndarray, camera: Camera, grid_step: int, device: str = "cpu"
+) -> PreparedPoints:
     """The fitting grid: every grid_step-th pixel (nearest, no averaging), invalid depth excluded."""
     grid = camera.backproject(np.where(valid_depth(depth_m), depth_m, 0.0), grid_step)
     depth_grid = grid[..., 2]
@@ -77,8 +79,12 @@ def prepare_points(depth_m: np.ndarray, camera: Camera, grid_step: int, device: 
     )
 
 
-def make_solver(config: FitConfig, weights_dir: str | Path | None = None, onnx_path: str | Path | None = None,
-                device: str = "cpu") -> CuboidSolver:
+def make_solver(
+    config: FitConfig,
+    weights_dir: str | Path | None = None,
+    onnx_path: str | Path | None = None,
+    device: str = "cpu",
+) -> CuboidSolver:
     bounds = SizeBounds(config.a_min, config.a_max)
     if config.solver == "numerical":
         from cuboidcli.solvers.numerical import NumericalSolver
@@ -118,8 +124,14 @@ def ensure_compiled() -> None:
     _COMPILED = True
 
 
-def fit_points(prep: PreparedPoints, config: FitConfig, solver: CuboidSolver, sampler: Sampler,
-               progress: ProgressFn | None = None, timing: dict | None = None) -> tuple[list[Cuboid], FitInfo]:
+def fit_points(
+    prep: PreparedPoints,
+    config: FitConfig,
+    solver: CuboidSolver,
+    sampler: Sampler,
+    progress: ProgressFn | None = None,
+    timing: dict | None = None,
+) -> tuple[list[Cuboid], FitInfo]:
     """Sequential robust fitting on prepared points (Sec. 3.2). ``timing`` collects per-stage seconds."""
     timing = {} if timing is None else timing
     for k in ("sample", "solve", "score", "update"):
@@ -141,7 +153,9 @@ def fit_points(prep: PreparedPoints, config: FitConfig, solver: CuboidSolver, sa
             break
         info.iterations += 1
         t = time.perf_counter()
-        ctx = SamplingContext(pts, prep.grid_index, prep.grid_shape, prep.depth_grid, state.float(), len(cuboids))
+        ctx = SamplingContext(
+            pts, prep.grid_index, prep.grid_shape, prep.depth_grid, state.float(), len(cuboids)
+        )
         with torch.no_grad():
             p, q = sampler.distributions(ctx)
         idx = draw_minimal_sets(p, q, config.hypotheses, config.min_set, gen).to(pts.device)
@@ -150,20 +164,27 @@ def fit_points(prep: PreparedPoints, config: FitConfig, solver: CuboidSolver, sa
         centers, half, rot = solver(pts[idx])
         t3 = time.perf_counter()
         timing["solve"] += t3 - t2
-        best, gain, _ = select_best(pts, centers, half, rot, state, sp, gen, config.prescore_points,
-                                    config.rescore_top)
+        best, gain, _ = select_best(
+            pts, centers, half, rot, state, sp, gen, config.prescore_points, config.rescore_top
+        )
         t4 = time.perf_counter()
         timing["score"] += t4 - t3
         if not gain > info.theta:
             info.stop_reason = "gain_below_theta"
             info.rejected_gain = gain
             break
-        cub = Cuboid(centers[best].cpu().numpy(), half[best].cpu().numpy(), rot[best].cpu().numpy(),
-                     inlier_gain=gain)
-        cuboids.append(cub)
+        c_b, a_b, R_b = centers[best : best + 1], half[best : best + 1], rot[best : best + 1]
+        values = _values_one(pts, c_b, a_b, R_b, sp)
+        if config.refine:
+            c_b, a_b, R_b, values, gain = _refine(pts, c_b, a_b, R_b, values, state, gain, sp, config, gen)
+            t5 = time.perf_counter()
+            timing["refine"] = timing.get("refine", 0.0) + t5 - t4
+            t4 = t5
+        cuboids.append(
+            Cuboid(c_b[0].cpu().numpy(), a_b[0].cpu().numpy(), R_b[0].cpu().numpy(), inlier_gain=gain)
+        )
         info.gains.append(gain)
-        state = combine(_values_one(pts, centers[best:best + 1], half[best:best + 1], rot[best:best + 1], sp),
-                        state)
+        state = combine(values, state)
         timing["update"] += time.perf_counter() - t4
         if progress is not None:
             progress(info.iterations, len(cuboids), gain)
@@ -171,21 +192,60 @@ def fit_points(prep: PreparedPoints, config: FitConfig, solver: CuboidSolver, sa
     return cuboids, info
 
 
+def _refine(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator):
+    """Refine the winner on the points it newly explains; keep the result only if the gain holds."""
+    from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
+
+    inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)
+    if inl.numel() < config.min_set:
+        return c, a, R, values, gain
+    if inl.numel() > config.refine_max_points:
+        inl = inl[torch.randperm(inl.numel(), generator=gen)[: config.refine_max_points].to(inl.device)]
+    if pts.device.type == "cpu":
+        out = refine_cuboid_fused(
+            pts[inl].numpy(), c[0].numpy(), a[0].numpy(), R[0].numpy(), config.a_min, config.a_max
+        )
+        c2, a2, R2 = (torch.from_numpy(np.asarray(x)) for x in out)
+    else:
+        c2, a2, R2 = refine_cuboid(pts[inl], c[0], a[0], R[0], config.a_min, config.a_max)
+    c2, a2, R2 = c2[None].to(c.dtype), a2[None].to(a.dtype), R2[None].to(R.dtype)
+    v2 = _values_one(pts, c2, a2, R2, sp)
+    g2 = float((combine(v2, state) - state).sum())
+    if g2 >= gain - 0.005 * abs(gain):
+        return c2, a2, R2, v2, g2
+    return c, a, R, values, gain
+
+
 def _values_one(pts, c, a, R, sp: ScoreParams) -> torch.Tensor:
     """f_OAI of one cuboid at every point (N,), float64."""
     if pts.device.type == "cpu":
         from cuboidcli.fitting.fused import cuboid_values
 
-        v = cuboid_values(pts.double().numpy(), c.double().numpy(), a.double().numpy(), R.double().numpy(),
-                          sp.tau, sp.beta, sp.tau_c, sp.occlusion_aware)
+        v = cuboid_values(
+            pts.double().numpy(),
+            c.double().numpy(),
+            a.double().numpy(),
+            R.double().numpy(),
+            sp.tau,
+            sp.beta,
+            sp.tau_c,
+            sp.occlusion_aware,
+        )
         return torch.from_numpy(v[0])
     return values_torch(pts.double(), c.double(), a.double(), R.double(), sp)[0]
 
 
-def fit_depth(depth_m: np.ndarray, camera: Camera, config: FitConfig | None = None, *,
-              solver: CuboidSolver | None = None, sampler: Sampler | None = None,
-              weights_dir: str | Path | None = None, onnx_path: str | Path | None = None,
-              progress: ProgressFn | None = None) -> tuple[list[Cuboid], FitInfo]:
+def fit_depth(
+    depth_m: np.ndarray,
+    camera: Camera,
+    config: FitConfig | None = None,
+    *,
+    solver: CuboidSolver | None = None,
+    sampler: Sampler | None = None,
+    weights_dir: str | Path | None = None,
+    onnx_path: str | Path | None = None,
+    progress: ProgressFn | None = None,
+) -> tuple[list[Cuboid], FitInfo]:
     """Fit cuboids to a depth map (H, W) in metres (0/NaN/inf = missing) seen by ``camera``.
 
     Returns the selected cuboids (in selection order, each with its ``inlier_gain``) and a FitInfo.
@@ -209,13 +269,21 @@ def fit_depth(depth_m: np.ndarray, camera: Camera, config: FitConfig | None = No
     return cuboids, info
 
 
-def grid_assignment(prep: PreparedPoints, state: np.ndarray, cuboids: list[Cuboid], config: FitConfig) -> np.ndarray:
+def grid_assignment(
+    prep: PreparedPoints, state: np.ndarray, cuboids: list[Cuboid], config: FitConfig
+) -> np.ndarray:
     """Per fitting-grid cell label (Hs, Ws): cuboid index, -1 none, -2 occluded, -3 no depth."""
     from cuboidcli.fitting.assign import assign_points
 
     labels = np.full(prep.grid_shape[0] * prep.grid_shape[1], INVALID, dtype=np.int32)
-    lab = assign_points(prep.points.cpu().numpy(), cuboids, config.tau_sq_m2, config.beta, config.tau_c,
-                        config.occlusion_aware)
+    lab = assign_points(
+        prep.points.cpu().numpy(),
+        cuboids,
+        config.tau_sq_m2,
+        config.beta,
+        config.tau_c,
+        config.occlusion_aware,
+    )
     if state is not None and len(cuboids):
         lab[state < 0] = OCCLUDED
     labels[prep.grid_index.numpy()] = lab

@@ -65,7 +65,9 @@ class SequentialSampler:
         return (w / total)[None], torch.ones(1, dtype=torch.float64, device=w.device)
 
 
-def draw_minimal_sets(p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator) -> Tensor:
+def draw_minimal_sets(
+    p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
+) -> Tensor:
     """Indices (H, C) of minimal sets: map j ~ q per hypothesis, then C points ~ p_j with replacement.
 
     Draws happen on the CPU generator so that results do not depend on the device.

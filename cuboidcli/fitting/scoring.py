@@ -31,27 +31,55 @@ def values_torch(points: Tensor, centers, half_sizes, rotations, sp: ScoreParams
     return K.inlier_fn(K.cuboid_sq_distance(local, half_sizes), sp.tau, sp.beta)
 
 
-def gains_torch(points: Tensor, centers, half_sizes, rotations, state: Tensor, sp: ScoreParams,
-                chunk: int = 64) -> Tensor:
+def gains_torch(
+    points: Tensor, centers, half_sizes, rotations, state: Tensor, sp: ScoreParams, chunk: int = 64
+) -> Tensor:
     """Reference gains (H,): sum over points of combine(value, state) - state."""
     out = []
     for s in range(0, centers.shape[0], chunk):
-        v = values_torch(points, centers[s:s + chunk], half_sizes[s:s + chunk], rotations[s:s + chunk], sp)
+        v = values_torch(
+            points, centers[s : s + chunk], half_sizes[s : s + chunk], rotations[s : s + chunk], sp
+        )
         out.append((K.combine(v, state[None]) - state[None]).sum(1))
     return torch.cat(out) if out else torch.zeros(0, dtype=points.dtype, device=points.device)
 
 
-def gains_cpu(points: np.ndarray, centers, half_sizes, rotations, state: np.ndarray, sp: ScoreParams,
-              prune_below: float = -np.inf) -> np.ndarray:
+def gains_cpu(
+    points: np.ndarray,
+    centers,
+    half_sizes,
+    rotations,
+    state: np.ndarray,
+    sp: ScoreParams,
+    prune_below: float = -np.inf,
+) -> np.ndarray:
     from cuboidcli.fitting.fused import score_gains
 
-    return score_gains(points, centers, half_sizes, rotations, state, sp.tau, sp.beta, sp.tau_c,
-                       sp.occlusion_aware, prune_below)
+    return score_gains(
+        points,
+        centers,
+        half_sizes,
+        rotations,
+        state,
+        sp.tau,
+        sp.beta,
+        sp.tau_c,
+        sp.occlusion_aware,
+        prune_below,
+    )
 
 
-def select_best(points: Tensor, centers: Tensor, half_sizes: Tensor, rotations: Tensor, state: Tensor,
-                sp: ScoreParams, generator: torch.Generator, prescore_points: int = 0,
-                rescore_top: int = 64) -> tuple[int, float, Tensor]:
+def select_best(
+    points: Tensor,
+    centers: Tensor,
+    half_sizes: Tensor,
+    rotations: Tensor,
+    state: Tensor,
+    sp: ScoreParams,
+    generator: torch.Generator,
+    prescore_points: int = 0,
+    rescore_top: int = 64,
+) -> tuple[int, float, Tensor]:
     """Index and exact gain of the best hypothesis, plus the gains vector (-inf where not computed).
 
     prescore_points == 0 (default) is exact: a cheap pass on a random eighth of the points nominates 16

@@ -113,12 +113,17 @@ def list_frames(root: str | os.PathLike, split: str | None = None) -> list[Frame
             raise InputError(f"no intrinsics for frame {name!r}: add it to {root / 'cameras.json'}")
         if "width" not in cam or "height" not in cam:
             raise InputError(f"intrinsics of frame {name!r} lack width/height")
-        frames.append(Frame(
-            name=name, depth_path=dpath, camera=Camera.from_dict(cam),
-            depth_scale=float(cam.get("depth_scale", 0.001)), rgb_path=rpath,
-            cuboids_path=_find(root / "cuboids", name, (".json",)),
-            instances_path=_find(root / "instances", name, (".png",)),
-        ))
+        frames.append(
+            Frame(
+                name=name,
+                depth_path=dpath,
+                camera=Camera.from_dict(cam),
+                depth_scale=float(cam.get("depth_scale", 0.001)),
+                rgb_path=rpath,
+                cuboids_path=_find(root / "cuboids", name, (".json",)),
+                instances_path=_find(root / "instances", name, (".png",)),
+            )
+        )
     if split is not None:
         sp = root / "splits.json"
         if not sp.is_file():

@@ -83,7 +83,9 @@ def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarra
         if depth.shape[2] == 1 or (suffix == ".exr"):
             depth = depth[..., 0]
         else:
-            raise InputError(f"{path} has {depth.shape[2]} channels; a depth map has one (is this the RGB image?)")
+            raise InputError(
+                f"{path} has {depth.shape[2]} channels; a depth map has one (is this the RGB image?)"
+            )
     if depth.ndim != 2:
         raise InputError(f"{path} has shape {depth.shape}; expected a 2-D depth map")
     if np.issubdtype(depth.dtype, np.integer):
@@ -110,7 +112,9 @@ def read_rgb(path: str | os.PathLike) -> np.ndarray:
         if img.dtype == np.uint16 and img.ndim == 3:
             img = (img / 257).astype(np.uint8)
         else:
-            raise InputError(f"{path} is not an 8-bit colour image (dtype {img.dtype}); did you pass the depth map?")
+            raise InputError(
+                f"{path} is not an 8-bit colour image (dtype {img.dtype}); did you pass the depth map?"
+            )
     if img.shape[2] == 4:
         img = img[..., :3]
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
@@ -127,8 +131,16 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
         if name not in PRESETS:
             raise InputError(f"unknown preset {name!r}; choose one of: {', '.join(PRESETS)}")
         p = PRESETS[name]
-        return Intrinsics(p["fx"], p["fy"], p["cx"], p["cy"], int(p["width"]), int(p["height"]),
-                          p["depth_scale"], source=f"preset:{name}")
+        return Intrinsics(
+            p["fx"],
+            p["fy"],
+            p["cx"],
+            p["cy"],
+            int(p["width"]),
+            int(p["height"]),
+            p["depth_scale"],
+            source=f"preset:{name}",
+        )
     path = Path(spec)
     if spec.lower().endswith(".json") or path.is_file():
         if not path.is_file():
@@ -148,17 +160,30 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
             elif len(entries) == 1:
                 d = next(iter(entries.values()))
             elif entries:
-                raise InputError(f"{path} holds intrinsics for several frames ({', '.join(sorted(entries)[:4])}, "
-                                 f"...); none is named {frame!r}")
+                raise InputError(
+                    f"{path} holds intrinsics for several frames ({', '.join(sorted(entries)[:4])}, "
+                    f"...); none is named {frame!r}"
+                )
         try:
-            return Intrinsics(float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]),
-                              int(d["width"]) if "width" in d else None, int(d["height"]) if "height" in d else None,
-                              float(d["depth_scale"]) if "depth_scale" in d else None, source=str(path))
+            return Intrinsics(
+                float(d["fx"]),
+                float(d["fy"]),
+                float(d["cx"]),
+                float(d["cy"]),
+                int(d["width"]) if "width" in d else None,
+                int(d["height"]) if "height" in d else None,
+                float(d["depth_scale"]) if "depth_scale" in d else None,
+                source=str(path),
+            )
         except (KeyError, TypeError, ValueError) as e:
-            raise InputError(f"intrinsics file {path} must hold numbers fx, fy, cx, cy (missing or bad: {e})") from e
+            raise InputError(
+                f"intrinsics file {path} must hold numbers fx, fy, cx, cy (missing or bad: {e})"
+            ) from e
     parts = spec.replace(" ", "").split(",")
     if len(parts) != 4:
-        raise InputError(f"--intrinsics {spec!r}: give fx,fy,cx,cy in pixels (4 numbers), a JSON file or a preset")
+        raise InputError(
+            f"--intrinsics {spec!r}: give fx,fy,cx,cy in pixels (4 numbers), a JSON file or a preset"
+        )
     try:
         fx, fy, cx, cy = (float(p) for p in parts)
     except ValueError as e:
@@ -166,7 +191,9 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
     return Intrinsics(fx, fy, cx, cy, source="command line")
 
 
-def check_inputs(depth_m: np.ndarray, intr: Intrinsics, rgb_shape: tuple[int, ...] | None = None) -> list[str]:
+def check_inputs(
+    depth_m: np.ndarray, intr: Intrinsics, rgb_shape: tuple[int, ...] | None = None
+) -> list[str]:
     """Sanity checks; raises InputError for unusable input, returns warnings (one line each)."""
     h, w = depth_m.shape
     notes: list[str] = []
@@ -178,29 +205,40 @@ def check_inputs(depth_m: np.ndarray, intr: Intrinsics, rgb_shape: tuple[int, ..
         notes.append(f"only {100.0 * n_valid / (h * w):.1f} % of depth pixels are valid")
     med = float(np.median(depth_m[valid]))
     if med > 100.0:
-        raise InputError(f"median depth is {med:.0f} m: the depth unit looks wrong (millimetres read as metres?); "
-                         "pass --depth-scale 0.001 for millimetre PNGs or --preset tum for 1/5000 m")
+        raise InputError(
+            f"median depth is {med:.0f} m: the depth unit looks wrong (millimetres read as metres?); "
+            "pass --depth-scale 0.001 for millimetre PNGs or --preset tum for 1/5000 m"
+        )
     if med < 0.05:
-        raise InputError(f"median depth is {med * 1000:.1f} mm: the depth unit looks wrong; check --depth-scale "
-                         "(0.001 for millimetre PNGs, 0.0002 for TUM)")
+        raise InputError(
+            f"median depth is {med * 1000:.1f} mm: the depth unit looks wrong; check --depth-scale "
+            "(0.001 for millimetre PNGs, 0.0002 for TUM)"
+        )
     if med > 30.0:
         notes.append(f"median depth is {med:.1f} m: unusually far for an indoor scene; check --depth-scale")
     if intr.fx <= 0 or intr.fy <= 0:
         raise InputError(f"focal lengths must be positive (fx={intr.fx}, fy={intr.fy})")
     if intr.fx < 0.1 * w and intr.fx < 50:
-        raise InputError(f"fx = {intr.fx:g} looks like a focal length in millimetres; give it in pixels "
-                         f"(about {0.8 * w:.0f} for a {w}-pixel-wide Kinect image)")
+        raise InputError(
+            f"fx = {intr.fx:g} looks like a focal length in millimetres; give it in pixels "
+            f"(about {0.8 * w:.0f} for a {w}-pixel-wide Kinect image)"
+        )
     if intr.fx > 20 * w:
         notes.append(f"fx = {intr.fx:g} px is very long for a {w}-pixel-wide image")
     if not (-0.5 * w <= intr.cx <= 1.5 * w) or not (-0.5 * h <= intr.cy <= 1.5 * h):
-        raise InputError(f"principal point ({intr.cx:g}, {intr.cy:g}) is far outside the {w}x{h} image; "
-                         "check the order fx,fy,cx,cy and the image size")
+        raise InputError(
+            f"principal point ({intr.cx:g}, {intr.cy:g}) is far outside the {w}x{h} image; "
+            "check the order fx,fy,cx,cy and the image size"
+        )
     if intr.width is not None and intr.height is not None and (intr.width, intr.height) != (w, h):
-        notes.append(f"intrinsics are for {intr.width}x{intr.height} but the depth map is {w}x{h}; "
-                     "using them unscaled")
+        notes.append(
+            f"intrinsics are for {intr.width}x{intr.height} but the depth map is {w}x{h}; using them unscaled"
+        )
     if rgb_shape is not None and tuple(rgb_shape[:2]) != (h, w):
-        raise InputError(f"RGB image is {rgb_shape[1]}x{rgb_shape[0]} but the depth map is {w}x{h}; "
-                         "they must be registered and the same size")
+        raise InputError(
+            f"RGB image is {rgb_shape[1]}x{rgb_shape[0]} but the depth map is {w}x{h}; "
+            "they must be registered and the same size"
+        )
     return notes
 
 

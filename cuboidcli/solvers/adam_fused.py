@@ -14,6 +14,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from cuboidcli.fitting.fused import slab_occlusion
+
 
 @njit(cache=True, inline="always")
 def _rodrigues(r0, r1, r2, R):
@@ -129,7 +131,7 @@ def _objective_and_grad(pts, p, R, dR, grad):
 
 @njit(parallel=True, cache=True)
 def adam_solve(pts, init, a_min, a_max, lr, iters, out):
-    """pts (H, C, 3) float64; init (H, 9) = (centre, axis-angle, half-sizes); writes the best iterate to out."""
+    """pts (H, C, 3) float64; init (H, 9) = (centre, axis-angle, half-sizes); best iterates go to out."""
     b1, b2, eps = 0.9, 0.999, 1e-8
     for h in prange(pts.shape[0]):
         p = init[h].copy()
@@ -168,4 +170,145 @@ def objective_and_grad(pts, p):
     th2 = _rodrigues(p[3], p[4], p[5], R)
     _rodrigues_derivatives(p[3:6], R, th2, dR)
     f = _objective_and_grad(pts, p, R, dR, grad)
+    return f, grad
+
+
+@njit(cache=True)
+def _oa_objective_and_grad(pts, p, R, dR, grad):
+    """Mean squared occlusion-aware distance d_oa(h, y)^2 of points to one cuboid and its gradient w.r.t.
+    p = (t, r, a). The occlusion indicators are piecewise constant and are held fixed."""
+    n = pts.shape[0]
+    for j in range(9):
+        grad[j] = 0.0
+    a = p[6:9]
+    t = p[0:3]
+    c0 = -(R[0, 0] * t[0] + R[1, 0] * t[1] + R[2, 0] * t[2])
+    c1 = -(R[0, 1] * t[0] + R[1, 1] * t[1] + R[2, 1] * t[2])
+    c2 = -(R[0, 2] * t[0] + R[1, 2] * t[1] + R[2, 2] * t[2])
+    total = 0.0
+    diff = np.zeros(3)
+    loc = np.zeros(3)
+    q = np.zeros(3)
+    gy = np.zeros(3)
+    ga = np.zeros(3)
+    for i in range(n):
+        for c in range(3):
+            diff[c] = pts[i, c] - t[c]
+        for c in range(3):
+            loc[c] = R[0, c] * diff[0] + R[1, c] * diff[1] + R[2, c] * diff[2]
+            q[c] = abs(loc[c]) - a[c]
+        # Eq. 2
+        d2 = 0.0
+        kmin = 0
+        mmin = 1e300
+        for c in range(3):
+            if q[c] > 0:
+                d2 += q[c] * q[c]
+            if -q[c] < mmin:
+                mmin = -q[c]
+                kmin = c
+        inside = mmin > 0
+        if inside:
+            d2 += mmin * mmin
+        best = d2
+        side_k = -1
+        side_s = 0.0
+        occ_in, ax_in, sg_in, occ_out, ax_out, sg_out = slab_occlusion(
+            loc[0], loc[1], loc[2], a[0], a[1], a[2], c0, c1, c2
+        )
+        for j in range(2):
+            if j == 0:
+                if not occ_in:
+                    continue
+                k, s = ax_in, sg_in
+            else:
+                if not occ_out:
+                    continue
+                k, s = ax_out, sg_out
+            dn = loc[k] - s * a[k]
+            ds = dn * dn
+            for c in range(3):
+                if c != k and q[c] > 0:
+                    ds += q[c] * q[c]
+            if ds > best:
+                best, side_k, side_s = ds, k, s
+        total += best
+        for c in range(3):
+            gy[c] = 0.0
+            ga[c] = 0.0
+        if side_k < 0:
+            for c in range(3):
+                if q[c] > 0:
+                    sg = 1.0 if loc[c] >= 0 else -1.0
+                    gy[c] = 2.0 * q[c] * sg
+                    ga[c] = -2.0 * q[c]
+            if inside:
+                sg = 1.0 if loc[kmin] >= 0 else -1.0
+                gy[kmin] = -2.0 * mmin * sg
+                ga[kmin] = 2.0 * mmin
+        else:
+            dn = loc[side_k] - side_s * a[side_k]
+            gy[side_k] = 2.0 * dn
+            ga[side_k] = -2.0 * side_s * dn
+            for c in range(3):
+                if c != side_k and q[c] > 0:
+                    sg = 1.0 if loc[c] >= 0 else -1.0
+                    gy[c] = 2.0 * q[c] * sg
+                    ga[c] = -2.0 * q[c]
+        for c in range(3):
+            grad[c] -= R[c, 0] * gy[0] + R[c, 1] * gy[1] + R[c, 2] * gy[2]
+            grad[6 + c] += ga[c]
+        for k in range(3):
+            acc = 0.0
+            for c in range(3):
+                acc += gy[c] * (dR[k, 0, c] * diff[0] + dR[k, 1, c] * diff[1] + dR[k, 2, c] * diff[2])
+            grad[3 + k] += acc
+    for j in range(9):
+        grad[j] /= n
+    return total / n
+
+
+@njit(cache=True)
+def refine_adam(pts, init, a_min, a_max, lr, iters):
+    """Adam on the mean d_oa^2 of points (N, 3) from init (9,) = (centre, axis-angle, half-sizes);
+    returns the best iterate (9,)."""
+    b1, b2, eps = 0.9, 0.999, 1e-8
+    p = init.copy()
+    out = init.copy()
+    m = np.zeros(9)
+    v = np.zeros(9)
+    grad = np.zeros(9)
+    R = np.zeros((3, 3))
+    dR = np.zeros((3, 3, 3))
+    best = 1e300
+    for it in range(iters + 1):
+        th2 = _rodrigues(p[3], p[4], p[5], R)
+        _rodrigues_derivatives(p[3:6], R, th2, dR)
+        loss = _oa_objective_and_grad(pts, p, R, dR, grad)
+        if loss < best:
+            best = loss
+            out[:] = p
+        if it == iters:
+            break
+        t = it + 1
+        c1 = 1.0 - b1**t
+        c2 = 1.0 - b2**t
+        for j in range(9):
+            m[j] = b1 * m[j] + (1.0 - b1) * grad[j]
+            v[j] = b2 * v[j] + (1.0 - b2) * grad[j] * grad[j]
+            p[j] -= lr * (m[j] / c1) / (math.sqrt(v[j] / c2) + eps)
+        for j in range(6, 9):
+            p[j] = min(max(p[j], a_min), a_max)
+    return out
+
+
+@njit(cache=True)
+def oa_objective_and_grad(pts, p):
+    """Test hook: mean d_oa^2 of points (N, 3) to the cuboid p (9,) and its gradient."""
+    R = np.zeros((3, 3))
+    dR = np.zeros((3, 3, 3))
+    grad = np.zeros(9)
+    th2 = _rodrigues(p[3], p[4], p[5], R)
+    _rodrigues_derivatives(p[3:6], R, th2, dR)
+    f = _oa_objective_and_grad(pts, p, R, dR, grad)
     return f, grad

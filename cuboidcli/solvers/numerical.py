@@ -71,8 +71,15 @@ class NumericalSolver:
             c0, a0, R0 = pca_init(pts.double(), self.bounds)
             init = torch.cat([c0, matrix_to_axis_angle(R0), a0], -1).contiguous().numpy()
         out = init.copy()
-        adam_solve(pts.double().contiguous().numpy(), init, self.bounds.a_min, self.bounds.a_max,
-                   self.lr, self.iters, out)
+        adam_solve(
+            pts.double().contiguous().numpy(),
+            init,
+            self.bounds.a_min,
+            self.bounds.a_max,
+            self.lr,
+            self.iters,
+            out,
+        )
         best = torch.from_numpy(out).to(pts.dtype)
         return best[:, :3].contiguous(), best[:, 6:].contiguous(), axis_angle_to_matrix(best[:, 3:6])
 
