@@ -47,7 +47,7 @@ def test_fit_is_deterministic_for_a_seed(room_depth, nyu_camera):
 
 def test_stopping_criterion_and_max_cuboids(room_depth, nyu_camera):
     depth, _ = room_depth
-    cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, max_cuboids=2, theta=1.0))
+    cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, max_cuboids=2, theta=-1e9))
     assert len(cubs) == 2 and info.stop_reason == "max_cuboids"
     # a huge theta rejects everything: no cuboid is ever reported below the threshold
     cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, theta=1e6))
