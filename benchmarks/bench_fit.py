@@ -1,0 +1,75 @@
+"""Fitting speed and memory at the paper's settings: 480x640 depth, every 8th pixel (<= 4800 fitting
+points), 4096 hypotheses per step, at most 8 cuboids, numerical solver.
+
+Prints per-frame and mean per-stage timings (s) and the peak RSS of the process. Frames: synthetic NYU-like
+rooms from the scene generator (always) and the real frames in ../shared/data (when present).
+
+    python benchmarks/bench_fit.py [--frames 5] [--fast] [--no-refine] [--sampler sequential]
+"""
+
+from __future__ import annotations
+
+import argparse
+import resource
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def frames(n_synth: int):
+    from cuboidcli.camera import Camera
+    from cuboidcli.synth.scene import generate_scene
+
+    cam = Camera.preset("nyu")
+    for i in range(n_synth):
+        s = generate_scene((2024, i), cam)
+        yield f"synth_{i:02d}", s.depth_m, cam
+    shared = Path(__file__).resolve().parents[2] / "shared" / "data"
+    if shared.is_dir():
+        from cuboidcli.io.dataset import list_frames
+
+        for sub in ("nyu", "tum"):
+            if (shared / sub).is_dir():
+                for f in list_frames(shared / sub):
+                    yield f"{sub}/{f.name}", f.depth_m(), f.camera
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--frames", type=int, default=5, help="synthetic frames")
+    ap.add_argument("--fast", action="store_true", help="approximate scoring (prescore on 600 points)")
+    ap.add_argument("--no-refine", action="store_true")
+    ap.add_argument("--sampler", default="sequential")
+    ap.add_argument("--hypotheses", type=int, default=4096)
+    ap.add_argument("--seed", type=int, default=0)
+    args = ap.parse_args()
+
+    import torch
+
+    from cuboidcli.fitting.config import FitConfig
+    from cuboidcli.fitting.pipeline import ensure_compiled, fit_depth
+
+    t = time.perf_counter()
+    ensure_compiled()
+    print(f"start-up (kernel compile/cache load): {time.perf_counter() - t:.2f} s; torch threads "
+          f"{torch.get_num_threads()}")
+    cfg = FitConfig(hypotheses=args.hypotheses, sampler=args.sampler, seed=args.seed, refine=not args.no_refine,
+                    prescore_points=600 if args.fast else 0)
+    stages = ("prepare", "sample", "solve", "score", "refine", "update", "total")
+    print(f"{'frame':28s} {'pts':>5s} {'|M|':>3s} {'steps':>5s} " + " ".join(f"{s:>7s}" for s in stages))
+    rows = []
+    for name, depth, cam in frames(args.frames):
+        cubs, info = fit_depth(depth, cam, cfg)
+        t = info.timing_s
+        rows.append([t.get(s, 0.0) for s in stages])
+        print(f"{name:28s} {info.n_points:5d} {len(cubs):3d} {info.iterations:5d} "
+              + " ".join(f"{t.get(s, 0.0):7.3f}" for s in stages))
+    mean = np.mean(rows, axis=0)
+    print(f"{'mean':28s} {'':5s} {'':3s} {'':5s} " + " ".join(f"{v:7.3f}" for v in mean))
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    print(f"peak RSS: {peak_mb:.0f} MB")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,108 @@
+"""`cuboids fit` on small inputs, and one test per class of bad input (message and exit code)."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from cuboidcli.cli.main import app
+
+runner = CliRunner()
+FAST = ["--hypotheses", "256", "--max-cuboids", "3"]
+
+
+def run(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def test_fit_writes_schema_json(tmp_path, room_png):
+    out = tmp_path / "out" / "room.json"
+    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, *FAST, "--seed", "3")
+    assert r.exit_code == 0, r.output
+    d = json.loads(out.read_text())
+    assert d["schema"] == "cuboids/1" and d["frame"] == "opencv"
+    assert d["camera"] == {"fx": 518.8579, "fy": 519.4696, "cx": 325.5824, "cy": 253.7362, "width": 640,
+                           "height": 480}
+    assert 1 <= len(d["cuboids"]) <= 3
+    c = d["cuboids"][0]
+    R = np.array(c["rotation"])
+    np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-5)
+    assert c["id"] == 0 and len(c["quat_wxyz"]) == 4 and c["inlier_gain"] > d["settings"]["theta_used"]
+    assert d["settings"]["seed"] == 3 and d["settings"]["hypotheses"] == 256
+    assert d["timing_s"]["total"] > 0 and d["input"]["depth_scale"] == 0.001
+    assert "cuboids" in r.output and "wrote" in r.output
+    # deterministic with --seed
+    out2 = tmp_path / "again.json"
+    run("fit", "--depth", room_png, "--preset", "nyu", "-o", out2, *FAST, "--seed", "3")
+    assert json.loads(out2.read_text())["cuboids"] == d["cuboids"]
+
+
+def test_fit_folder_and_intrinsics_forms(tmp_path, room_png):
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for name in ("a", "b"):
+        (folder / f"{name}.png").write_bytes(room_png.read_bytes())
+    r = run("fit", "--depth", folder, "-K", "518.8579,519.4696,325.5824,253.7362", "-o", tmp_path / "res",
+            *FAST, "-q")
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in (tmp_path / "res").iterdir()) == ["a_cuboids.json", "b_cuboids.json"]
+    cam = tmp_path / "cam.json"
+    cam.write_text(json.dumps({"fx": 500.0, "fy": 500.0, "cx": 320.0, "cy": 240.0}))
+    r = run("fit", "--depth", room_png, "-K", cam, "-o", tmp_path / "k.json", *FAST, "-q")
+    assert r.exit_code == 0, r.output
+    assert json.loads((tmp_path / "k.json").read_text())["camera"]["fx"] == 500.0
+
+
+@pytest.mark.parametrize("kind", ["missing", "corrupt", "zeros", "wrong_unit", "mm_focal", "rgb_size", "eight_bit"])
+def test_bad_inputs_give_one_line_errors(tmp_path, room_png, kind):
+    args = ["fit", "--depth", room_png, "--preset", "nyu", "-o", tmp_path / "x.json", *FAST]
+    if kind == "missing":
+        args[2] = tmp_path / "nope.png"
+        expect = "depth file not found"
+    elif kind == "corrupt":
+        bad = tmp_path / "bad.png"
+        bad.write_bytes(b"\x89PNG\r\n\x1a\n garbage")
+        args[2] = bad
+        expect = "cannot decode"
+    elif kind == "zeros":
+        z = tmp_path / "z.png"
+        cv2.imwrite(str(z), np.zeros((48, 64), np.uint16))
+        args[2] = z
+        expect = "no valid pixels"
+    elif kind == "wrong_unit":
+        mm = tmp_path / "mm.npy"  # millimetres saved where metres are expected
+        np.save(mm, np.full((48, 64), 2500.0, np.float32))
+        args[2] = mm
+        expect = "unit looks wrong"
+    elif kind == "mm_focal":
+        args[3:5] = ["-K", "3.5,3.5,320,240"]
+        expect = "millimetres"
+    elif kind == "rgb_size":
+        img = tmp_path / "small.png"
+        cv2.imwrite(str(img), np.zeros((10, 10, 3), np.uint8))
+        args.insert(1, img)
+        expect = "RGB image is 10x10"
+    else:
+        e8 = tmp_path / "e8.png"
+        cv2.imwrite(str(e8), np.full((48, 64), 100, np.uint8))
+        args[2] = e8
+        expect = "8-bit"
+    r = run(*args)
+    assert r.exit_code == 2, r.output
+    assert expect in r.output
+    assert "Traceback" not in r.output
+    assert not (tmp_path / "x.json").exists()
+
+
+def test_option_errors(tmp_path, room_png):
+    r = run("fit", "--depth", room_png, "--hypotheses", "0")
+    assert r.exit_code == 2 and "--hypotheses" in r.output
+    r = run("fit", "--depth", room_png, "--device", "cuda")
+    if "error" in r.output:
+        assert r.exit_code == 2 and "CUDA" in r.output
+    r = run("fit")
+    assert r.exit_code == 2 and "--depth" in r.output
+    r = run("fit", "--depth", room_png, "--solver", "onnx")
+    assert r.exit_code == 2 and "--onnx" in r.output
