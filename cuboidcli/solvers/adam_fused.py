@@ -41,6 +41,29 @@ def _rodrigues(r0, r1, r2, R):
 
 
 @njit(cache=True)
+def _right_jacobian(r0, r1, r2, th2, J):
+    """Right Jacobian of SO(3) at r, J = I - (1 - cos t)/t^2 [r]x + (t - sin t)/t^3 [r]x^2, into J (3, 3):
+    R(r + dr) = R(r) exp([J dr]x) to first order."""
+    if th2 < 1e-12:
+        b = 0.5 - th2 / 24.0
+        c = 1.0 / 6.0 - th2 / 120.0
+    else:
+        th = math.sqrt(th2)
+        b = (1.0 - math.cos(th)) / th2
+        c = (th - math.sin(th)) / (th2 * th)
+    # [r]x^2 = r r^T - th2 I
+    J[0, 0] = 1.0 + c * (r0 * r0 - th2)
+    J[0, 1] = b * r2 + c * r0 * r1
+    J[0, 2] = -b * r1 + c * r0 * r2
+    J[1, 0] = -b * r2 + c * r1 * r0
+    J[1, 1] = 1.0 + c * (r1 * r1 - th2)
+    J[1, 2] = b * r0 + c * r1 * r2
+    J[2, 0] = b * r1 + c * r2 * r0
+    J[2, 1] = -b * r0 + c * r2 * r1
+    J[2, 2] = 1.0 + c * (r2 * r2 - th2)
+
+
+@njit(cache=True)
 def _rodrigues_derivatives(r, R, th2, dR):
     """dR[k] = dR/dr_k, (3, 3, 3)."""
     for k in range(3):
@@ -73,59 +96,91 @@ def _rodrigues_derivatives(r, R, th2, dR):
             dR[k, 2, j] = -s1 * R[0, j] + s0 * R[1, j]
 
 
+@njit(cache=True, inline="always")
+def _axis_grad(coord, a):
+    """Eq. 2 terms of one local coordinate: (excess q = |coord| - a, sign of coord)."""
+    return abs(coord) - a, (1.0 if coord >= 0 else -1.0)
+
+
 @njit(cache=True)
 def _objective_and_grad(pts, p, R, dR, grad):
-    """F = sum_i d(h, y_i)^2 * (a_x + a_y + a_z) and its gradient w.r.t. p = (t, r, a)."""
+    """F = sum_i d(h, y_i)^2 * (a_x + a_y + a_z) and its gradient w.r.t. p = (t, r, a).
+
+    Written with scalars only (no per-call allocations): this is the innermost loop of the solver.
+    """
     n = pts.shape[0]
+    t0, t1, t2 = p[0], p[1], p[2]
     a0, a1, a2 = p[6], p[7], p[8]
     asum = a0 + a1 + a2
     dsum = 0.0
-    for j in range(9):
-        grad[j] = 0.0
-    ga = np.zeros(3)
-    gy = np.zeros(3)
-    loc = np.zeros(3)
-    diff = np.zeros(3)
+    gt0 = gt1 = gt2 = 0.0
+    gr0 = gr1 = gr2 = 0.0
+    ga0 = ga1 = ga2 = 0.0
     for i in range(n):
-        for c in range(3):
-            diff[c] = pts[i, c] - p[c]
-        for c in range(3):
-            loc[c] = R[0, c] * diff[0] + R[1, c] * diff[1] + R[2, c] * diff[2]
-        # Eq. 2 and its derivatives w.r.t. the local coordinates (gy) and the half-sizes (ga, accumulated)
+        x0 = pts[i, 0] - t0
+        x1 = pts[i, 1] - t1
+        x2 = pts[i, 2] - t2
+        l0 = R[0, 0] * x0 + R[1, 0] * x1 + R[2, 0] * x2
+        l1 = R[0, 1] * x0 + R[1, 1] * x1 + R[2, 1] * x2
+        l2 = R[0, 2] * x0 + R[1, 2] * x1 + R[2, 2] * x2
+        q0, s0 = _axis_grad(l0, a0)
+        q1, s1 = _axis_grad(l1, a1)
+        q2, s2 = _axis_grad(l2, a2)
+        g0 = g1 = g2 = 0.0
         d2 = 0.0
-        inside = True
-        kmin = 0
-        mmin = 1e300
-        for c in range(3):
-            ac = p[6 + c]
-            q = abs(loc[c]) - ac
-            sgn = 1.0 if loc[c] >= 0 else -1.0
-            if q > 0:
-                inside = False
-                d2 += q * q
-                gy[c] = 2.0 * q * sgn
-                ga[c] += -2.0 * q * asum
+        if q0 > 0:
+            d2 += q0 * q0
+            g0 = 2.0 * q0 * s0
+            ga0 -= 2.0 * q0 * asum
+        if q1 > 0:
+            d2 += q1 * q1
+            g1 = 2.0 * q1 * s1
+            ga1 -= 2.0 * q1 * asum
+        if q2 > 0:
+            d2 += q2 * q2
+            g2 = 2.0 * q2 * s2
+            ga2 -= 2.0 * q2 * asum
+        if q0 < 0 and q1 < 0 and q2 < 0:
+            # inside: distance to the nearest face (first minimum, as torch's min)
+            m = -q0
+            k = 0
+            if -q1 < m:
+                m = -q1
+                k = 1
+            if -q2 < m:
+                m = -q2
+                k = 2
+            d2 += m * m
+            if k == 0:
+                g0 = -2.0 * m * s0
+                ga0 += 2.0 * m * asum
+            elif k == 1:
+                g1 = -2.0 * m * s1
+                ga1 += 2.0 * m * asum
             else:
-                gy[c] = 0.0
-            if -q < mmin:
-                mmin = -q
-                kmin = c
-        if inside and mmin > 0:
-            d2 += mmin * mmin
-            sgn = 1.0 if loc[kmin] >= 0 else -1.0
-            gy[kmin] = -2.0 * mmin * sgn
-            ga[kmin] += 2.0 * mmin * asum
+                g2 = -2.0 * m * s2
+                ga2 += 2.0 * m * asum
         dsum += d2
-        # chain rule: loc = R^T (y - t)  ->  dF/dt = -R gy * asum ;  dF/dr_k = gy . (dR_k^T (y - t)) * asum
-        for c in range(3):
-            grad[c] -= asum * (R[c, 0] * gy[0] + R[c, 1] * gy[1] + R[c, 2] * gy[2])
-        for k in range(3):
-            acc = 0.0
-            for c in range(3):
-                acc += gy[c] * (dR[k, 0, c] * diff[0] + dR[k, 1, c] * diff[1] + dR[k, 2, c] * diff[2])
-            grad[3 + k] += asum * acc
-    for c in range(3):
-        grad[6 + c] = ga[c] + dsum
+        if g0 == 0.0 and g1 == 0.0 and g2 == 0.0:
+            continue
+        # loc = R^T (y - t): dF/dt = -R g asum; dF/dr_k = g . (dR_k^T (y - t)) asum
+        gt0 -= R[0, 0] * g0 + R[0, 1] * g1 + R[0, 2] * g2
+        gt1 -= R[1, 0] * g0 + R[1, 1] * g1 + R[1, 2] * g2
+        gt2 -= R[2, 0] * g0 + R[2, 1] * g1 + R[2, 2] * g2
+        # rotation: with R' = R exp([d]x), loc' = loc + loc x d, so dF/dd = sum g x loc (right Jacobian below)
+        gr0 += g1 * l2 - g2 * l1
+        gr1 += g2 * l0 - g0 * l2
+        gr2 += g0 * l1 - g1 * l0
+    grad[0] = gt0 * asum
+    grad[1] = gt1 * asum
+    grad[2] = gt2 * asum
+    # dF/dr = J_r(r)^T dF/dd, stored in dR[0] by the caller
+    grad[3] = (dR[0, 0, 0] * gr0 + dR[0, 1, 0] * gr1 + dR[0, 2, 0] * gr2) * asum
+    grad[4] = (dR[0, 0, 1] * gr0 + dR[0, 1, 1] * gr1 + dR[0, 2, 1] * gr2) * asum
+    grad[5] = (dR[0, 0, 2] * gr0 + dR[0, 1, 2] * gr1 + dR[0, 2, 2] * gr2) * asum
+    grad[6] = ga0 + dsum
+    grad[7] = ga1 + dsum
+    grad[8] = ga2 + dsum
     return dsum * asum
 
 
@@ -141,18 +196,21 @@ def adam_solve(pts, init, a_min, a_max, lr, iters, out):
         R = np.zeros((3, 3))
         dR = np.zeros((3, 3, 3))
         best = 1e300
+        p1 = 1.0
+        p2 = 1.0
         for it in range(iters + 1):
             th2 = _rodrigues(p[3], p[4], p[5], R)
-            _rodrigues_derivatives(p[3:6], R, th2, dR)
+            _right_jacobian(p[3], p[4], p[5], th2, dR[0])
             loss = _objective_and_grad(pts[h], p, R, dR, grad)
             if loss < best:
                 best = loss
                 out[h, :] = p
             if it == iters:
                 break
-            t = it + 1
-            c1 = 1.0 - b1**t
-            c2 = 1.0 - b2**t
+            p1 *= b1
+            p2 *= b2
+            c1 = 1.0 - p1
+            c2 = 1.0 - p2
             for j in range(9):
                 m[j] = b1 * m[j] + (1.0 - b1) * grad[j]
                 v[j] = b2 * v[j] + (1.0 - b2) * grad[j] * grad[j]
@@ -168,7 +226,7 @@ def objective_and_grad(pts, p):
     dR = np.zeros((3, 3, 3))
     grad = np.zeros(9)
     th2 = _rodrigues(p[3], p[4], p[5], R)
-    _rodrigues_derivatives(p[3:6], R, th2, dR)
+    _right_jacobian(p[3], p[4], p[5], th2, dR[0])
     f = _objective_and_grad(pts, p, R, dR, grad)
     return f, grad
 
