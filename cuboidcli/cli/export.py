@@ -1,0 +1,130 @@
+"""``cuboids export``: convert a saved "cuboids/1" result to GLB / PLY / OBJ / PNG, or the solver to ONNX."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+
+from cuboidcli.cli.common import fail, out, user_errors
+
+
+def _input_file(result, key: str) -> Path | None:
+    """The input file the result records under ``input[key]``, if it still exists."""
+    value = result.input.get(key)
+    return Path(value) if isinstance(value, str) and Path(value).is_file() else None
+
+
+def export(
+    result_json: Path | None = typer.Argument(
+        None, metavar="RESULT.json", help="A cuboids/1 result written by `cuboids fit`.", show_default=False
+    ),
+    glb: Path | None = typer.Option(None, "--glb", help="Write the cuboids as GLB (Blender, three.js)."),
+    ply: Path | None = typer.Option(
+        None,
+        "--ply",
+        help="Write the point cloud coloured by cuboid to this PLY and the cuboid meshes to "
+        "<name>_cuboids.ply (needs the depth map).",
+    ),
+    obj: Path | None = typer.Option(None, "--obj", help="Write the cuboids as OBJ (+ .mtl beside it)."),
+    overlay: Path | None = typer.Option(
+        None,
+        "--overlay",
+        help="Write the cuboids drawn over the image to this PNG, plus <name>_labels.png "
+        "(0 = background, k+1 = cuboid k), <name>_labels_color.png and <name>_panel.png.",
+    ),
+    image: Path | None = typer.Option(
+        None,
+        "--image",
+        help="RGB image the result was fitted on (overlay background, GLB point colours); "
+        "default: the one the result records, if it exists.",
+    ),
+    depth: Path | None = typer.Option(
+        None,
+        "--depth",
+        help="Depth map the result was fitted on (PLY, --with-points, overlay without RGB); "
+        "default: the one the result records, if it exists.",
+    ),
+    depth_scale: float | None = typer.Option(
+        None, "--depth-scale", help="Metres per depth-PNG unit; default: the result's, else 0.001."
+    ),
+    with_points: bool = typer.Option(False, "--with-points", help="Add the input point cloud to the GLB."),
+    step: int = typer.Option(1, "--step", min=1, help="Use every step-th pixel for point clouds."),
+    onnx: Path | None = typer.Option(None, "--onnx", help="Export the neural solver to this ONNX file."),
+    weights: Path | None = typer.Option(
+        None, "--weights", help="Solver weights for --onnx (default: the packaged weights)."
+    ),
+    opset: int = typer.Option(17, "--opset", help="ONNX opset for --onnx."),
+) -> None:
+    """Convert a saved result to files other tools open, or export the neural solver to ONNX."""
+    wants_files = any(p is not None for p in (glb, ply, obj, overlay))
+    if onnx is None and not wants_files:
+        fail("nothing to export: pass --glb, --ply, --obj or --overlay (with RESULT.json), or --onnx PATH")
+    if wants_files and result_json is None:
+        fail("--glb/--ply/--obj/--overlay convert a result: pass RESULT.json first")
+    if weights is not None and onnx is None:
+        fail("--weights only applies to --onnx PATH")
+    if with_points and glb is None:
+        fail("--with-points adds the points to the GLB: pass --glb PATH too")
+    if onnx is not None:
+        _export_onnx(onnx, weights, opset)
+    if wants_files:
+        _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step)
+
+
+def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
+    if weights is not None and not weights.exists():
+        fail(f"--weights {weights}: not found")
+    with user_errors():
+        try:
+            from cuboidcli.solvers.onnx import export_solver_onnx
+
+            path = export_solver_onnx(None if weights is None else str(weights), str(onnx), opset=opset)
+        except ImportError as e:
+            fail(f"ONNX export is unavailable ({e}); install the extra: pip install 'cuboids[onnx]'")
+        except (ValueError, RuntimeError, OSError) as e:
+            fail(f"ONNX export failed: {e}")
+    out.print(f"wrote {path}", highlight=False)
+
+
+def _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step) -> None:
+    from cuboidcli.export import export_result
+    from cuboidcli.io.depth import read_depth, read_rgb
+    from cuboidcli.io.result import read_result
+
+    with user_errors():
+        try:
+            result = read_result(result_json)
+        except ValueError as e:
+            fail(f"{result_json}: {e}")
+        depth = depth if depth is not None else _input_file(result, "depth")
+        image = image if image is not None else _input_file(result, "image")
+        if (ply is not None or with_points) and depth is None:
+            fail(
+                "--ply and --with-points need the input points: pass --depth DEPTH (the map the result was "
+                "fitted on)"
+            )
+        scale = depth_scale if depth_scale is not None else float(result.input.get("depth_scale") or 0.001)
+        depth_m = None if depth is None else read_depth(depth, scale)
+        rgb = None if image is None else read_rgb(image)
+        try:
+            written = export_result(
+                result,
+                glb_path=glb,
+                ply_path=ply,
+                obj_path=obj,
+                overlay_path=overlay,
+                depth_m=depth_m,
+                rgb=rgb,
+                with_points=with_points,
+                point_step=step,
+            )
+        except (ValueError, OSError) as e:
+            fail(str(e))
+    for path in written.values():
+        out.print(f"wrote {path}", highlight=False)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``export`` command to the ``cuboids`` app."""
+    app.command("export")(export)

@@ -1,0 +1,250 @@
+"""Outputs people can open: GLB (Blender, three.js), PLY (MeshLab, CloudCompare), OBJ, PNG overlays.
+
+Each exporter takes cuboids in the OpenCV camera frame and converts only on the way out. The entry points
+here work on a whole :class:`~cuboidcli.io.result.FitResult`; :func:`write_outputs` is what ``cuboids fit``
+calls to write everything next to the result JSON.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from cuboidcli.export.glb import OPENCV_TO_GLTF, gltf_points, node_matrix, node_name, write_glb
+from cuboidcli.export.obj import write_obj
+from cuboidcli.export.overlay import (
+    RayCast,
+    colorize_depth,
+    colorize_labels,
+    raycast,
+    render_images,
+    write_png,
+)
+from cuboidcli.export.ply import (
+    assign_labels,
+    depth_points,
+    label_colors,
+    write_cuboid_ply,
+    write_point_ply,
+)
+from cuboidcli.io.result import FitResult
+
+__all__ = [
+    "OPENCV_TO_GLTF",
+    "RayCast",
+    "assign_labels",
+    "colorize_depth",
+    "colorize_labels",
+    "depth_points",
+    "export_result",
+    "gltf_points",
+    "image_paths",
+    "label_colors",
+    "node_matrix",
+    "node_name",
+    "ply_paths",
+    "raycast",
+    "render_images",
+    "write_cuboid_ply",
+    "write_glb",
+    "write_obj",
+    "write_outputs",
+    "write_png",
+    "write_result_glb",
+    "write_result_images",
+    "write_result_ply",
+]
+
+
+def _sibling(path: Path, drop_suffix: str, name: str, ext: str) -> Path:
+    """``dir/<stem>_<name><ext>`` where a trailing ``_<drop_suffix>`` is removed from the stem first."""
+    stem = path.stem
+    if stem.endswith(f"_{drop_suffix}"):
+        stem = stem[: -len(drop_suffix) - 1]
+    return path.with_name(f"{stem}_{name}{ext}")
+
+
+def image_paths(overlay_path: str | Path) -> dict[str, Path]:
+    """Where the images that accompany an overlay go: ``x.png`` -> x_labels.png, x_labels_color.png,
+    x_panel.png (and ``x_overlay.png`` -> x_labels.png, ...)."""
+    p = Path(overlay_path)
+    return {
+        "overlay": p,
+        "labels": _sibling(p, "overlay", "labels", ".png"),
+        "labels_color": _sibling(p, "overlay", "labels_color", ".png"),
+        "panel": _sibling(p, "overlay", "panel", ".png"),
+    }
+
+
+def ply_paths(points_path: str | Path) -> dict[str, Path]:
+    """``x.ply`` holds the points and x_cuboids.ply the meshes (``x_points.ply`` -> x_cuboids.ply)."""
+    p = Path(points_path)
+    return {"points_ply": p, "cuboids_ply": _sibling(p, "points", "cuboids", ".ply")}
+
+
+def _labelled_points(
+    result: FitResult, depth_m: np.ndarray, point_step: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Valid points (N, 3) m, their flat pixel indices (N,) and cuboid labels (N,) of a depth map."""
+    if depth_m.shape != (result.camera.height, result.camera.width):
+        raise ValueError(
+            f"the depth map is {depth_m.shape[1]}x{depth_m.shape[0]} but the result's camera is "
+            f"{result.camera.width}x{result.camera.height}; pass the depth map the result was "
+            "fitted on"
+        )
+    points, pix = depth_points(depth_m, result.camera, point_step)
+    return points, pix, assign_labels(points, result.cuboids, result.settings)
+
+
+def write_result_glb(
+    result: FitResult,
+    path: str | Path,
+    *,
+    depth_m: np.ndarray | None = None,
+    rgb: np.ndarray | None = None,
+    with_points: bool = False,
+    point_step: int = 1,
+    labelled: tuple | None = None,
+) -> Path:
+    """GLB of the result's cuboids, with the input camera; with ``with_points`` also the depth map's points.
+
+    Points are coloured from ``rgb`` (H, W, 3) uint8 if given, else by their assigned cuboid. ``labelled``
+    optionally passes (points, pixel indices, labels) already computed from the same depth map and step.
+    """
+    points = colors = None
+    if with_points:
+        if depth_m is None:
+            raise ValueError("the GLB point cloud needs the depth map; pass it or leave out the points")
+        if rgb is not None and rgb.shape[:2] != depth_m.shape:
+            raise ValueError("the RGB image and the depth map differ in size")
+        if rgb is not None:
+            points, pix = depth_points(depth_m, result.camera, point_step)
+            colors = np.asarray(rgb, dtype=np.uint8).reshape(-1, 3)[pix]
+        else:
+            points, _, labels = labelled or _labelled_points(result, depth_m, point_step)
+            colors = label_colors(labels)
+    meta = {"schema": "cuboids/1", "camera": result.camera.to_dict(), "n_cuboids": len(result.cuboids)}
+    return write_glb(
+        path, result.cuboids, camera=result.camera, points=points, point_colors=colors, metadata=meta
+    )
+
+
+def write_result_ply(
+    result: FitResult,
+    points_path: str | Path,
+    depth_m: np.ndarray,
+    *,
+    point_step: int = 1,
+    cuboids_path: str | Path | None = None,
+    labelled: tuple | None = None,
+) -> dict[str, Path]:
+    """Point cloud PLY coloured by assigned cuboid (grey none, black occluded) and the cuboid-mesh PLY."""
+    paths = ply_paths(points_path)
+    if cuboids_path is not None:
+        paths["cuboids_ply"] = Path(cuboids_path)
+    points, _, labels = labelled or _labelled_points(result, depth_m, point_step)
+    write_point_ply(paths["points_ply"], points, label_colors(labels))
+    write_cuboid_ply(paths["cuboids_ply"], result.cuboids)
+    return paths
+
+
+def write_result_images(
+    result: FitResult,
+    overlay_path: str | Path,
+    *,
+    rgb: np.ndarray | None = None,
+    depth_m: np.ndarray | None = None,
+) -> dict[str, Path]:
+    """Overlay, raw label image (0 = background, k + 1 = cuboid k), colourised labels and the panel."""
+    images = render_images(result.camera, result.cuboids, rgb=rgb, depth_m=depth_m)
+    paths = image_paths(overlay_path)
+    for key, path in paths.items():
+        write_png(path, images[key])
+    return paths
+
+
+def export_result(
+    result: FitResult,
+    *,
+    glb_path: str | Path | None = None,
+    ply_path: str | Path | None = None,
+    obj_path: str | Path | None = None,
+    overlay_path: str | Path | None = None,
+    depth_m: np.ndarray | None = None,
+    rgb: np.ndarray | None = None,
+    with_points: bool = False,
+    point_step: int = 1,
+) -> dict[str, Path]:
+    """Write each output whose path is given; returns {output kind: path}.
+
+    ``glb_path``: the GLB (``with_points`` adds the depth map's points). ``ply_path``: the point cloud PLY,
+    with the cuboid meshes in ``<name>_cuboids.ply`` beside it (see :func:`ply_paths`; needs ``depth_m``).
+    ``obj_path``: the OBJ and its .mtl. ``overlay_path``: the overlay PNG and, beside it, the label image,
+    its colourised version and the panel (see :func:`image_paths`). ``depth_m`` (H, W) metres and ``rgb``
+    (H, W, 3) uint8 must match the result's camera size; point clouds use every ``point_step``-th pixel.
+    Raises ValueError for missing or mismatched inputs.
+    """
+    if ply_path is not None and depth_m is None:
+        raise ValueError("the PLY point cloud needs the depth map the result was fitted on")
+    if with_points and glb_path is not None and depth_m is None:
+        raise ValueError("the GLB point cloud needs the depth map the result was fitted on")
+    needs_labels = depth_m is not None and (
+        ply_path is not None or (glb_path is not None and with_points and rgb is None)
+    )
+    labelled = _labelled_points(result, depth_m, point_step) if needs_labels else None
+    written: dict[str, Path] = {}
+    if glb_path is not None:
+        written["glb"] = write_result_glb(
+            result,
+            glb_path,
+            depth_m=depth_m,
+            rgb=rgb,
+            with_points=with_points,
+            point_step=point_step,
+            labelled=labelled,
+        )
+    if ply_path is not None:
+        written.update(write_result_ply(result, ply_path, depth_m, point_step=point_step, labelled=labelled))
+    if obj_path is not None:
+        written["obj"], written["mtl"] = write_obj(obj_path, result.cuboids)
+    if overlay_path is not None:
+        written.update(write_result_images(result, overlay_path, rgb=rgb, depth_m=depth_m))
+    return written
+
+
+def write_outputs(
+    result: FitResult,
+    out_stem: str | Path,
+    *,
+    depth_m: np.ndarray | None = None,
+    rgb: np.ndarray | None = None,
+    glb: bool = False,
+    ply: bool = False,
+    obj: bool = False,
+    overlay: bool = False,
+    with_points: bool = False,
+    point_step: int = 1,
+) -> dict[str, Path]:
+    """Write the requested outputs next to ``out_stem`` (e.g. ``out/scene`` for ``out/scene.json``).
+
+    ``glb``: <stem>.glb (``with_points`` adds the depth map's points). ``ply``: <stem>_points.ply and
+    <stem>_cuboids.ply (needs ``depth_m``). ``obj``: <stem>.obj + <stem>.mtl. ``overlay``: <stem>_overlay.png,
+    <stem>_labels.png, <stem>_labels_color.png, <stem>_panel.png. ``depth_m`` (H, W) metres and ``rgb``
+    (H, W, 3) uint8 must match the result's camera size; points use every ``point_step``-th pixel.
+    Returns {output kind: path}; see :func:`export_result`.
+    """
+    base = Path(out_stem)
+    if base.suffix.lower() == ".json":
+        base = base.with_suffix("")
+    return export_result(
+        result,
+        glb_path=f"{base}.glb" if glb else None,
+        ply_path=f"{base}_points.ply" if ply else None,
+        obj_path=f"{base}.obj" if obj else None,
+        overlay_path=f"{base}_overlay.png" if overlay else None,
+        depth_m=depth_m,
+        rgb=rgb,
+        with_points=with_points,
+        point_step=point_step,
+    )

@@ -1,0 +1,166 @@
+"""GLB (binary glTF 2.0) export: one node per cuboid, for Blender, three.js and other glTF viewers.
+
+glTF is +Y up and looks down -Z; the OpenCV camera frame is +Y down and looks down +Z. The two differ by
+``F = diag(1, -1, -1)``, a 180 degree turn about x (det +1, not a mirror), so a point ``x`` in camera
+coordinates is ``F x`` in glTF. A cuboid's corner ``R (s * a) + c`` becomes ``(F R) (s * a) + F c``: the node
+gets the proper rotation ``F R`` and the translation ``F c``, its mesh is the box with half-sizes ``a`` in the
+cuboid's own frame, and the node's local axes are the cuboid's axes. Corner k of the mesh lands exactly on
+``F @ Cuboid.corners()[k]``; triangle winding (outward normals) is preserved because F is a rotation.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+from cuboidcli.camera import Camera
+from cuboidcli.cuboid import Cuboid, palette_color
+from cuboidcli.export.boxmesh import flat_box
+from cuboidcli.io.atomic import atomic_write
+
+#: OpenCV camera frame -> glTF frame (x right, y up, z backward).
+OPENCV_TO_GLTF: np.ndarray = np.diag([1.0, -1.0, -1.0])
+
+
+def node_name(index: int) -> str:
+    """Name of the glTF node holding cuboid ``index``: cuboid_00, cuboid_01, ..."""
+    return f"cuboid_{index:02d}"
+
+
+def gltf_points(points: np.ndarray) -> np.ndarray:
+    """Points (..., 3) in OpenCV camera coordinates -> the same points in glTF coordinates (metres)."""
+    return np.asarray(points, dtype=np.float64) @ OPENCV_TO_GLTF.T
+
+
+def node_matrix(cuboid: Cuboid) -> np.ndarray:
+    """(4, 4) glTF node transform of a cuboid: rotation ``F R`` (det +1), translation ``F c``."""
+    m = np.eye(4)
+    m[:3, :3] = OPENCV_TO_GLTF @ cuboid.rotation
+    m[:3, 3] = OPENCV_TO_GLTF @ cuboid.center
+    return m
+
+
+def node_extras(cuboid: Cuboid, index: int) -> dict:
+    """JSON-safe cuboid parameters for the node's ``extras``, in the OpenCV camera frame (metres)."""
+    return {
+        "id": index,
+        "frame": "opencv camera (x right, y down, z forward), metres; the node transform is glTF (y up)",
+        "center": [float(v) for v in cuboid.center],
+        "half_size": [float(v) for v in cuboid.half_size],
+        "rotation": [[float(v) for v in row] for row in cuboid.rotation],
+        "quat_wxyz": [float(v) for v in cuboid.quat_wxyz],
+        "inlier_gain": None if cuboid.inlier_gain is None else float(cuboid.inlier_gain),
+        "color": list(palette_color(index)),
+    }
+
+
+def build_scene(
+    cuboids: list[Cuboid],
+    points: np.ndarray | None = None,
+    point_colors: np.ndarray | None = None,
+    alpha: float = 1.0,
+    metadata: dict | None = None,
+):
+    """A trimesh Scene with nodes ``cuboid_00``... and, if ``points`` (N, 3) m is given, a ``points`` node.
+
+    ``points`` are in OpenCV camera coordinates; ``point_colors`` (N, 3) uint8 RGB (grey if None).
+    ``alpha`` in (0, 1] is the boxes' opacity (glTF BLEND mode below 1).
+    """
+    import trimesh
+    from trimesh.visual.material import PBRMaterial
+
+    scene = trimesh.Scene(metadata=dict(metadata or {}))
+    for k, cub in enumerate(cuboids):
+        vertices, faces, normals = flat_box(cub.half_size)
+        rgb = np.array(palette_color(k), dtype=np.float64) / 255.0
+        material = PBRMaterial(
+            name=f"{node_name(k)}_material",
+            baseColorFactor=[float(rgb[0]), float(rgb[1]), float(rgb[2]), float(alpha)],
+            metallicFactor=0.0,
+            roughnessFactor=0.8,
+            alphaMode="BLEND" if alpha < 1.0 else "OPAQUE",
+            doubleSided=alpha < 1.0,
+        )
+        mesh = trimesh.Trimesh(
+            vertices=vertices,
+            faces=faces,
+            vertex_normals=normals,
+            process=False,
+            visual=trimesh.visual.TextureVisuals(material=material),
+        )
+        scene.add_geometry(
+            mesh,
+            node_name=node_name(k),
+            geom_name=node_name(k),
+            transform=node_matrix(cub),
+            metadata=node_extras(cub, k),
+        )
+    if points is not None and len(points) > 0:
+        pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        if point_colors is None:
+            point_colors = np.full((len(pts), 3), 160, dtype=np.uint8)
+        rgba = np.concatenate(
+            [
+                np.asarray(point_colors, dtype=np.uint8).reshape(-1, 3),
+                np.full((len(pts), 1), 255, dtype=np.uint8),
+            ],
+            axis=1,
+        )
+        cloud = trimesh.PointCloud(gltf_points(pts).astype(np.float32), colors=rgba)
+        scene.add_geometry(
+            cloud,
+            node_name="points",
+            geom_name="points",
+            metadata={"frame": "vertices are glTF coordinates (y up, z backward), metres"},
+        )
+    return scene
+
+
+def _add_camera(tree: dict, camera: Camera) -> None:
+    """Append a perspective camera node at the origin looking down -Z (the input camera in glTF).
+
+    glTF cameras have no principal point, so an off-centre (cx, cy) is not represented.
+    """
+    tree.setdefault("cameras", []).append(
+        {
+            "name": "input_camera",
+            "type": "perspective",
+            "perspective": {
+                "aspectRatio": float(camera.width) / float(camera.height),
+                "yfov": 2.0 * math.atan(camera.height / (2.0 * camera.fy)),
+                "znear": 0.01,
+            },
+        }
+    )
+    tree["nodes"].append({"name": "input_camera", "camera": len(tree["cameras"]) - 1})
+    tree["scenes"][0]["nodes"].append(len(tree["nodes"]) - 1)
+
+
+def write_glb(
+    path: str | os.PathLike,
+    cuboids: list[Cuboid],
+    *,
+    camera: Camera | None = None,
+    points: np.ndarray | None = None,
+    point_colors: np.ndarray | None = None,
+    alpha: float = 1.0,
+    metadata: dict | None = None,
+) -> Path:
+    """Write cuboids (and optionally points (N, 3) m, OpenCV frame) as a GLB file, atomically.
+
+    With ``camera`` a glTF camera node named ``input_camera`` is added at the origin, so viewers can look
+    through the input camera. Returns ``path``.
+    """
+    from trimesh.exchange.gltf import export_glb
+
+    if not 0.0 < alpha <= 1.0:
+        raise ValueError(f"alpha must be in (0, 1], got {alpha}")
+    meta = {"generator": "cuboids", "frame": "glTF = diag(1, -1, -1) * OpenCV camera frame, metres"}
+    meta.update(metadata or {})
+    scene = build_scene(cuboids, points, point_colors, alpha=alpha, metadata=meta)
+    post = None if camera is None else (lambda tree: _add_camera(tree, camera))
+    data = export_glb(scene, include_normals=True, tree_postprocessor=post)
+    return atomic_write(path, lambda p: p.write_bytes(data))

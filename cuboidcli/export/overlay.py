@@ -1,0 +1,261 @@
+"""Image outputs: cuboids drawn over the input image, a per-pixel label image, and a report panel.
+
+Visibility is exact per pixel: every pixel's camera ray is intersected with every box (slab test in the
+box's own frame) and the nearest hit wins, which gives the z-buffer, the label image (which cuboid is seen
+at each pixel) and the face shading in one pass. Edges are sampled along their projection and drawn only
+where no other surface is in front of them. Pixel (u, v) is the centre of the pixel in column u, row v,
+as in :class:`cuboidcli.camera.Camera`. Images are RGB uint8 (H, W, 3) in memory; PNGs are written with
+OpenCV, atomically.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from cuboidcli.camera import Camera, valid_depth
+from cuboidcli.cuboid import Cuboid, palette_color
+from cuboidcli.export.boxmesh import BOX_EDGES
+from cuboidcli.io.atomic import atomic_write
+
+#: Background colour (RGB) when there is neither an RGB image nor a depth map.
+BLANK_RGB: tuple[int, int, int] = (32, 32, 32)
+_NEAR_M = 0.01  # edges are clipped to z >= 1 cm in front of the camera
+
+
+@dataclass
+class RayCast:
+    """Per-pixel result of casting the camera rays at the cuboids.
+
+    ``depth_m`` (H, W) float64: z (metres) of the nearest cuboid surface, inf where no cuboid is hit.
+    ``label`` (H, W) int32: index of that cuboid, -1 where none. ``shade`` (H, W) float32 in [0, 1]:
+    |cos| of the angle between the ray and the normal of the side it hits (0 where none).
+    """
+
+    depth_m: np.ndarray
+    label: np.ndarray
+    shade: np.ndarray
+
+
+def _check_image(name: str, image: np.ndarray, camera: Camera) -> None:
+    if image.shape[:2] != (camera.height, camera.width):
+        raise ValueError(
+            f"{name} is {image.shape[1]}x{image.shape[0]} but the result's camera is "
+            f"{camera.width}x{camera.height}; pass the image the result was fitted on"
+        )
+
+
+def raycast(camera: Camera, cuboids: list[Cuboid]) -> RayCast:
+    """Intersect the ray of every pixel with every cuboid and keep the nearest hit (an exact z-buffer).
+
+    The ray of pixel (u, v) is ``t * d`` with ``d = ((u - cx) / fx, (v - cy) / fy, 1)``, so the ray
+    parameter t is the z-depth. In the box frame the ray is ``o + t * R^T d`` with ``o = -R^T c``; the slab
+    test gives the entry t_near and exit t_far. A camera inside a box sees the box's inside (t_far).
+    """
+    h, w = camera.height, camera.width
+    u, v = camera.pixel_grid()
+    dirs = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones_like(u)], -1).reshape(
+        -1, 3
+    )
+    ray_len = np.linalg.norm(dirs, axis=1)
+    depth = np.full(h * w, np.inf)
+    label = np.full(h * w, -1, dtype=np.int32)
+    shade = np.zeros(h * w, dtype=np.float32)
+    rows = np.arange(h * w)
+    for k, cub in enumerate(cuboids):
+        origin = -cub.rotation.T @ cub.center
+        d_loc = dirs @ cub.rotation
+        # Rays parallel to a slab get a tiny direction of the same sign: their t for that slab is +-huge.
+        d_loc = np.where(np.abs(d_loc) < 1e-12, np.where(d_loc < 0, -1e-12, 1e-12), d_loc)
+        t1 = (-cub.half_size - origin) / d_loc
+        t2 = (cub.half_size - origin) / d_loc
+        t_lo, t_hi = np.minimum(t1, t2), np.maximum(t1, t2)
+        t_near, t_far = t_lo.max(axis=1), t_hi.min(axis=1)
+        inside = t_near <= 0.0
+        t = np.where(inside, t_far, t_near)
+        axis = np.where(inside, t_hi.argmin(axis=1), t_lo.argmax(axis=1))
+        hit = (t_near <= t_far) & (t_far > 0.0) & (t < depth)
+        depth[hit] = t[hit]
+        label[hit] = k
+        # The side's normal is the local axis `axis`, so |cos| = |d_loc[axis]| / |d|.
+        shade[hit] = (np.abs(d_loc[rows, axis]) / ray_len)[hit]
+    return RayCast(depth.reshape(h, w), label.reshape(h, w), shade.reshape(h, w))
+
+
+def label_image(cast_or_label: RayCast | np.ndarray) -> np.ndarray:
+    """Label PNG data (H, W): 0 = background, k + 1 = cuboid k; uint8 below 255 cuboids, else uint16."""
+    label = cast_or_label.label if isinstance(cast_or_label, RayCast) else np.asarray(cast_or_label)
+    dtype = np.uint8 if label.max(initial=-1) <= 254 else np.uint16
+    return (label.astype(np.int64) + 1).astype(dtype)
+
+
+def colorize_labels(label: np.ndarray) -> np.ndarray:
+    """(H, W) labels (-1 background, k cuboid k) -> (H, W, 3) uint8 RGB, palette colours on black."""
+    label = np.asarray(label)
+    n = max(int(label.max(initial=-1)) + 1, 0)
+    table = np.array([(0, 0, 0), *(palette_color(k) for k in range(n))], dtype=np.uint8)
+    return table[label.astype(np.int64) + 1]
+
+
+def colorize_depth(depth_m: np.ndarray) -> np.ndarray:
+    """(H, W) depth in metres -> (H, W, 3) uint8 RGB (turbo, near = red, far = blue; missing = black).
+
+    The colour range spans the 2nd to 98th percentile of the valid depths, so outliers do not flatten it.
+    """
+    import cv2
+
+    valid = valid_depth(depth_m)
+    out = np.zeros((*depth_m.shape, 3), dtype=np.uint8)
+    if not valid.any():
+        return out
+    lo, hi = np.percentile(depth_m[valid], [2.0, 98.0])
+    x = np.clip((depth_m - lo) / max(hi - lo, 1e-6), 0.0, 1.0)
+    u8 = np.round(255.0 * (1.0 - x)).astype(np.uint8)
+    rgb = cv2.cvtColor(cv2.applyColorMap(u8, cv2.COLORMAP_TURBO), cv2.COLOR_BGR2RGB)
+    out[valid] = rgb[valid]
+    return out
+
+
+def _visible_runs(camera: Camera, cuboid: Cuboid, zmax: np.ndarray) -> list[np.ndarray]:
+    """Pixel polylines (n, 2) of the visible parts of a cuboid's 12 edges.
+
+    An edge sample is visible unless every cuboid surface in the 3x3 pixels around it is nearer by more
+    than 1 % + 5 mm; ``zmax`` (H, W) is the 3x3 maximum of the z-buffer, so silhouettes never self-occlude.
+    """
+    runs = []
+    corners = cuboid.corners()
+    for i, j in BOX_EDGES:
+        p0, p1 = corners[i], corners[j]
+        if p0[2] < _NEAR_M and p1[2] < _NEAR_M:
+            continue
+        if p0[2] < _NEAR_M or p1[2] < _NEAR_M:  # clip the edge at the near plane
+            s = (_NEAR_M - p0[2]) / (p1[2] - p0[2])
+            q = p0 + s * (p1 - p0)
+            p0, p1 = (q, p1) if p0[2] < _NEAR_M else (p0, q)
+        (uv0, uv1), _ = camera.project(np.stack([p0, p1]))
+        n = int(np.clip(np.ceil(np.linalg.norm(uv1 - uv0)), 1, 4000)) + 1
+        pts = p0 + np.linspace(0.0, 1.0, n)[:, None] * (p1 - p0)
+        uv, z = camera.project(pts)
+        ui, vi = np.round(uv[:, 0]).astype(np.int64), np.round(uv[:, 1]).astype(np.int64)
+        inside = (ui >= 0) & (ui < camera.width) & (vi >= 0) & (vi < camera.height)
+        visible = np.ones(n, dtype=bool)
+        visible[inside] = z[inside] <= zmax[vi[inside], ui[inside]] * 1.01 + 0.005
+        # split into runs of consecutive visible samples
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], visible.astype(np.int8), [0]])))
+        for a, b in zip(edges[0::2], edges[1::2], strict=True):
+            if b - a >= 2:
+                runs.append(uv[a:b])
+    return runs
+
+
+def draw_overlay(
+    background: np.ndarray,
+    camera: Camera,
+    cuboids: list[Cuboid],
+    cast: RayCast | None = None,
+    alpha: float = 0.45,
+    edge_px: int = 2,
+) -> np.ndarray:
+    """Cuboids over ``background`` (H, W, 3) uint8 RGB: shaded semi-transparent faces and visible edges.
+
+    Faces blend the cuboid's palette colour (darker on sides seen at a grazing angle) with weight
+    ``alpha``; edges are ``edge_px`` wide, anti-aliased, hidden where another cuboid is in front.
+    """
+    import cv2
+
+    _check_image("the background image", background, camera)
+    cast = raycast(camera, cuboids) if cast is None else cast
+    img = background.astype(np.float32).copy()
+    if cuboids:
+        colors = np.array([palette_color(k) for k in range(len(cuboids))], dtype=np.float32)
+        m = cast.label >= 0
+        face = colors[cast.label[m]] * (0.45 + 0.55 * cast.shade[m])[:, None]
+        img[m] = (1.0 - alpha) * img[m] + alpha * face
+    out = np.ascontiguousarray(np.clip(np.round(img), 0, 255).astype(np.uint8))
+    if not cuboids or edge_px <= 0:
+        return out
+    zbuf = np.where(np.isfinite(cast.depth_m), cast.depth_m, 1e6).astype(np.float32)
+    zmax = cv2.dilate(zbuf, np.ones((3, 3), np.uint8))
+    shift = 4  # sub-pixel line positions, 1/16 px
+    for k, cub in enumerate(cuboids):
+        runs = _visible_runs(camera, cub, zmax)
+        polys = [np.round(r * (1 << shift)).astype(np.int32).reshape(-1, 1, 2) for r in runs]
+        if polys:
+            cv2.polylines(
+                out, polys, False, tuple(int(c) for c in palette_color(k)), edge_px, cv2.LINE_AA, shift
+            )
+    return out
+
+
+def background_image(
+    camera: Camera, rgb: np.ndarray | None = None, depth_m: np.ndarray | None = None
+) -> np.ndarray:
+    """The RGB image if given, else the colour-mapped depth, else a dark grey image; (H, W, 3) uint8."""
+    if rgb is not None:
+        _check_image("the RGB image", rgb, camera)
+        return np.asarray(rgb, dtype=np.uint8)
+    if depth_m is not None:
+        _check_image("the depth map", depth_m, camera)
+        return colorize_depth(depth_m)
+    return np.full((camera.height, camera.width, 3), BLANK_RGB, dtype=np.uint8)
+
+
+def make_panel(tiles: list[tuple[str, np.ndarray]], title_px: int = 28, gap_px: int = 4) -> np.ndarray:
+    """Tiles (title, (H, W, 3) uint8 RGB) side by side with a title bar above each; all tiles share H."""
+    import cv2
+
+    h = tiles[0][1].shape[0]
+    cols = []
+    for i, (title, tile) in enumerate(tiles):
+        if tile.shape[0] != h:
+            raise ValueError("all panel tiles must have the same height")
+        bar = np.full((title_px, tile.shape[1], 3), 24, dtype=np.uint8)
+        cv2.putText(
+            bar, title, (8, title_px - 9), cv2.FONT_HERSHEY_SIMPLEX, 0.6, (240, 240, 240), 1, cv2.LINE_AA
+        )
+        cols.append(np.concatenate([bar, tile], axis=0))
+        if i + 1 < len(tiles):
+            cols.append(np.full((h + title_px, gap_px, 3), 255, dtype=np.uint8))
+    return np.concatenate(cols, axis=1)
+
+
+def render_images(
+    camera: Camera, cuboids: list[Cuboid], rgb: np.ndarray | None = None, depth_m: np.ndarray | None = None
+) -> dict[str, np.ndarray]:
+    """All image outputs in memory: ``overlay``, ``labels`` (raw, 0 = background), ``labels_color``,
+    ``panel``.
+
+    The panel is image | depth | cuboids | labels, leaving out the inputs that are not given.
+    """
+    cast = raycast(camera, cuboids)
+    background = background_image(camera, rgb, depth_m)
+    overlay = draw_overlay(background, camera, cuboids, cast)
+    labels_color = colorize_labels(cast.label)
+    tiles = []
+    if rgb is not None:
+        tiles.append(("image", background))
+    if depth_m is not None:
+        tiles.append(("depth", colorize_depth(depth_m)))
+    tiles += [(f"cuboids ({len(cuboids)})", overlay), ("labels", labels_color)]
+    return {
+        "overlay": overlay,
+        "labels": label_image(cast),
+        "labels_color": labels_color,
+        "panel": make_panel(tiles),
+    }
+
+
+def write_png(path: str | os.PathLike, image: np.ndarray) -> Path:
+    """Write (H, W, 3) uint8 RGB or (H, W) uint8/uint16 grey as PNG, atomically. Returns ``path``."""
+    import cv2
+
+    data = cv2.cvtColor(image, cv2.COLOR_RGB2BGR) if image.ndim == 3 else image
+
+    def _write(tmp: Path) -> None:
+        if not cv2.imwrite(str(tmp), data):
+            raise OSError(f"could not write PNG {path}")
+
+    return atomic_write(path, _write)

@@ -1,0 +1,197 @@
+"""``cuboids export`` through typer's CliRunner, on a tiny result, depth map and RGB image."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+import types
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+import trimesh
+import typer
+from typer.testing import CliRunner
+
+from cuboidcli.camera import Camera
+from cuboidcli.cli.export import register
+from cuboidcli.cuboid import Cuboid
+from cuboidcli.export import raycast
+from cuboidcli.io.result import FitResult, write_result
+
+runner = CliRunner()
+CAM = Camera(fx=60.0, fy=60.0, cx=31.5, cy=23.5, width=64, height=48)
+
+
+def _scene() -> list[Cuboid]:
+    turn = np.array([[0.8, 0.0, 0.6], [0.0, 1.0, 0.0], [-0.6, 0.0, 0.8]])
+    return [
+        Cuboid([-0.4, 0.1, 2.0], [0.25, 0.3, 0.2], turn),
+        Cuboid([0.5, 0.2, 2.5], [0.3, 0.2, 0.3], np.eye(3)),
+        Cuboid([0.1, -0.6, 1.8], [0.2, 0.15, 0.1], np.eye(3)),
+    ]
+
+
+@pytest.fixture
+def app() -> typer.Typer:
+    app = typer.Typer()
+    app.callback()(lambda: None)  # keep `export` as a named subcommand
+    register(app)
+    return app
+
+
+@pytest.fixture
+def inputs(tmp_path):
+    """result.json, a millimetre depth PNG and an RGB PNG of the same 64x48 scene."""
+    cuboids = _scene()
+    seen = raycast(CAM, cuboids[:2])
+    depth = np.where(seen.label >= 0, seen.depth_m, 5.0)
+    cv2.imwrite(str(tmp_path / "depth.png"), np.round(depth * 1000).astype(np.uint16))
+    rgb = np.zeros((CAM.height, CAM.width, 3), np.uint8)
+    rgb[..., 1] = 120
+    cv2.imwrite(str(tmp_path / "rgb.png"), rgb)
+    write_result(tmp_path / "result.json", FitResult(camera=CAM, cuboids=cuboids))
+    return tmp_path
+
+
+def test_export_all_formats(app, inputs):
+    d = inputs
+    res = runner.invoke(
+        app,
+        [
+            "export",
+            str(d / "result.json"),
+            "--glb",
+            str(d / "o.glb"),
+            "--ply",
+            str(d / "o.ply"),
+            "--obj",
+            str(d / "o.obj"),
+            "--overlay",
+            str(d / "o.png"),
+            "--image",
+            str(d / "rgb.png"),
+            "--depth",
+            str(d / "depth.png"),
+            "--with-points",
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    for name in (
+        "o.glb",
+        "o.ply",
+        "o_cuboids.ply",
+        "o.obj",
+        "o.mtl",
+        "o.png",
+        "o_labels.png",
+        "o_labels_color.png",
+        "o_panel.png",
+    ):
+        assert (d / name).is_file(), name
+        assert f"wrote {d / name}" in res.output.replace("\n", "")
+    scene = trimesh.load(d / "o.glb")
+    assert sorted(scene.graph.nodes_geometry) == ["cuboid_00", "cuboid_01", "cuboid_02", "points"]
+    assert len(trimesh.load(d / "o.ply").vertices) == CAM.width * CAM.height
+    labels = cv2.imread(str(d / "o_labels.png"), cv2.IMREAD_UNCHANGED)
+    assert np.array_equal(labels.astype(int) - 1, raycast(CAM, _scene()).label)
+    overlay = cv2.imread(str(d / "o.png"))
+    assert tuple(overlay[0, 0]) == (0, 120, 0)  # the RGB image shows where there is no cuboid
+
+
+def test_overlay_without_rgb_uses_the_depth_map(app, inputs):
+    d = inputs
+    res = runner.invoke(
+        app,
+        [
+            "export",
+            str(d / "result.json"),
+            "--overlay",
+            str(d / "x_overlay.png"),
+            "--depth",
+            str(d / "depth.png"),
+        ],
+    )
+    assert res.exit_code == 0, res.output
+    assert (d / "x_panel.png").is_file() and (d / "x_labels.png").is_file()
+    panel = cv2.imread(str(d / "x_panel.png"))
+    assert panel.shape[1] == 3 * CAM.width + 2 * 4  # depth | cuboids | labels
+
+
+@pytest.mark.parametrize(
+    ("argv", "message"),
+    [
+        (["export"], "nothing to export"),
+        (["export", "--glb", "x.glb"], "pass RESULT.json"),
+        (["export", "missing.json", "--glb", "x.glb"], "not found"),
+        (["export", "{d}/result.json", "--ply", "{d}/x.ply"], "--depth"),
+        (["export", "{d}/result.json", "--with-points", "--obj", "{d}/x.obj"], "--glb"),
+        (["export", "{d}/result.json", "--overlay", "{d}/o.png", "--image", "{d}/nope.png"], "not found"),
+        (["export", "{d}/result.json", "--weights", "w.pt", "--obj", "{d}/x.obj"], "--onnx"),
+    ],
+)
+def test_export_errors_are_one_line(app, inputs, argv, message):
+    res = runner.invoke(app, [a.format(d=inputs) for a in argv])
+    assert res.exit_code == 2, res.output
+    assert message in res.output and res.output.strip().count("\n") <= 1
+
+
+def test_bad_result_json_is_a_clear_error(app, tmp_path):
+    (tmp_path / "r.json").write_text('{"schema": "other"}')
+    res = runner.invoke(app, ["export", str(tmp_path / "r.json"), "--glb", str(tmp_path / "x.glb")])
+    assert res.exit_code == 2 and "not a cuboids/1 file" in res.output
+
+
+def test_rgb_of_the_wrong_size_is_a_clear_error(app, inputs):
+    cv2.imwrite(str(inputs / "small.png"), np.zeros((10, 12, 3), np.uint8))
+    res = runner.invoke(
+        app,
+        [
+            "export",
+            str(inputs / "result.json"),
+            "--overlay",
+            str(inputs / "o.png"),
+            "--image",
+            str(inputs / "small.png"),
+        ],
+    )
+    assert res.exit_code == 2 and "12x10" in res.output and "64x48" in res.output
+
+
+def test_onnx_options_reach_the_solver_export(app, tmp_path, monkeypatch):
+    calls = []
+
+    def fake_export(weights_path, out_path, opset=17):
+        calls.append((weights_path, out_path, opset))
+        return Path(out_path)
+
+    monkeypatch.setitem(
+        sys.modules, "cuboidcli.solvers.onnx", types.SimpleNamespace(export_solver_onnx=fake_export)
+    )
+    (tmp_path / "w.pt").write_bytes(b"")
+    res = runner.invoke(
+        app,
+        ["export", "--onnx", str(tmp_path / "s.onnx"), "--weights", str(tmp_path / "w.pt"), "--opset", "18"],
+    )
+    assert res.exit_code == 0, res.output
+    assert calls == [(str(tmp_path / "w.pt"), str(tmp_path / "s.onnx"), 18)]
+    assert "wrote" in res.output
+    res = runner.invoke(
+        app, ["export", "--onnx", str(tmp_path / "s.onnx"), "--weights", str(tmp_path / "no.pt")]
+    )
+    assert res.exit_code == 2 and "not found" in res.output
+
+
+@pytest.mark.skipif(
+    importlib.util.find_spec("cuboidcli.solvers.onnx") is None,
+    reason="cuboidcli.solvers.onnx (the solver's ONNX export) is not in the tree yet",
+)
+def test_export_onnx(app, tmp_path):
+    pytest.importorskip("onnx")
+    import onnx
+
+    res = runner.invoke(app, ["export", "--onnx", str(tmp_path / "solver.onnx")])
+    assert res.exit_code == 0, res.output
+    model = onnx.load(str(tmp_path / "solver.onnx"))
+    assert any(op.version == 17 for op in model.opset_import if op.domain in ("", "ai.onnx"))
