@@ -52,10 +52,17 @@ def main() -> None:
 
     t = time.perf_counter()
     ensure_compiled()
-    print(f"start-up (kernel compile/cache load): {time.perf_counter() - t:.2f} s; torch threads "
-          f"{torch.get_num_threads()}")
-    cfg = FitConfig(hypotheses=args.hypotheses, sampler=args.sampler, seed=args.seed, refine=not args.no_refine,
-                    prescore_points=600 if args.fast else 0)
+    print(
+        f"start-up (kernel compile/cache load): {time.perf_counter() - t:.2f} s; torch threads "
+        f"{torch.get_num_threads()}"
+    )
+    cfg = FitConfig(
+        hypotheses=args.hypotheses,
+        sampler=args.sampler,
+        seed=args.seed,
+        refine=not args.no_refine,
+        prescore_points=600 if args.fast else 0,
+    )
     stages = ("prepare", "sample", "solve", "score", "refine", "update", "total")
     print(f"{'frame':28s} {'pts':>5s} {'|M|':>3s} {'steps':>5s} " + " ".join(f"{s:>7s}" for s in stages))
     rows = []
@@ -63,8 +70,10 @@ def main() -> None:
         cubs, info = fit_depth(depth, cam, cfg)
         t = info.timing_s
         rows.append([t.get(s, 0.0) for s in stages])
-        print(f"{name:28s} {info.n_points:5d} {len(cubs):3d} {info.iterations:5d} "
-              + " ".join(f"{t.get(s, 0.0):7.3f}" for s in stages))
+        print(
+            f"{name:28s} {info.n_points:5d} {len(cubs):3d} {info.iterations:5d} "
+            + " ".join(f"{t.get(s, 0.0):7.3f}" for s in stages)
+        )
     mean = np.mean(rows, axis=0)
     print(f"{'mean':28s} {'':5s} {'':3s} {'':5s} " + " ".join(f"{v:7.3f}" for v in mean))
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024

@@ -23,8 +23,14 @@ def test_fit_writes_schema_json(tmp_path, room_png):
     assert r.exit_code == 0, r.output
     d = json.loads(out.read_text())
     assert d["schema"] == "cuboids/1" and d["frame"] == "opencv"
-    assert d["camera"] == {"fx": 518.8579, "fy": 519.4696, "cx": 325.5824, "cy": 253.7362, "width": 640,
-                           "height": 480}
+    assert d["camera"] == {
+        "fx": 518.8579,
+        "fy": 519.4696,
+        "cx": 325.5824,
+        "cy": 253.7362,
+        "width": 640,
+        "height": 480,
+    }
     assert 1 <= len(d["cuboids"]) <= 3
     c = d["cuboids"][0]
     R = np.array(c["rotation"])
@@ -44,8 +50,17 @@ def test_fit_folder_and_intrinsics_forms(tmp_path, room_png):
     folder.mkdir()
     for name in ("a", "b"):
         (folder / f"{name}.png").write_bytes(room_png.read_bytes())
-    r = run("fit", "--depth", folder, "-K", "518.8579,519.4696,325.5824,253.7362", "-o", tmp_path / "res",
-            *FAST, "-q")
+    r = run(
+        "fit",
+        "--depth",
+        folder,
+        "-K",
+        "518.8579,519.4696,325.5824,253.7362",
+        "-o",
+        tmp_path / "res",
+        *FAST,
+        "-q",
+    )
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in (tmp_path / "res").iterdir()) == ["a_cuboids.json", "b_cuboids.json"]
     cam = tmp_path / "cam.json"
@@ -55,7 +70,9 @@ def test_fit_folder_and_intrinsics_forms(tmp_path, room_png):
     assert json.loads((tmp_path / "k.json").read_text())["camera"]["fx"] == 500.0
 
 
-@pytest.mark.parametrize("kind", ["missing", "corrupt", "zeros", "wrong_unit", "mm_focal", "rgb_size", "eight_bit"])
+@pytest.mark.parametrize(
+    "kind", ["missing", "corrupt", "zeros", "wrong_unit", "mm_focal", "rgb_size", "eight_bit"]
+)
 def test_bad_inputs_give_one_line_errors(tmp_path, room_png, kind):
     args = ["fit", "--depth", room_png, "--preset", "nyu", "-o", tmp_path / "x.json", *FAST]
     if kind == "missing":

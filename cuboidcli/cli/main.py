@@ -37,8 +37,12 @@ _fit.register(app)
 from cuboidcli.cli import export as _export  # noqa: E402
 
 _export.register(app)
+from cuboidcli.cli import evaluate as _evaluate  # noqa: E402
 
+_evaluate.register(app)
+from cuboidcli.cli import synth as _synth  # noqa: E402
 
+_synth.register(app)
 
 if __name__ == "__main__":
     app()

@@ -1,0 +1,273 @@
+"""`cuboids evaluate`: the paper's metrics over a dataset (NYU Depth v2 or a generic folder)."""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import replace
+from pathlib import Path
+
+import typer
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.table import Table
+
+from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
+
+#: Table columns in the paper's order (Table 1): (aggregate key, header, decimals).
+COLUMNS = (
+    ("time_s", "time (s)", 2),
+    ("cuboids", "|M|", 1),
+    ("coverage_pct", "cover %", 1),
+    ("oa_covered_cm", "OA cov. cm", 1),
+    ("oa_all_cm", "OA all cm", 1),
+)
+
+
+def _parse_list(text: str, what: str, cast=float) -> list:
+    try:
+        values = [cast(v) for v in text.replace(" ", "").split(",") if v]
+    except ValueError:
+        fail(f"{what} {text!r}: give comma-separated numbers, e.g. 20,5")
+    if not values:
+        fail(f"{what} is empty")
+    return values
+
+
+def _config(
+    preset, sampler, solver, hypotheses, max_cuboids, grid_step, no_oai, refine, fast, auc, seed, device
+):
+    from cuboidcli.evaluation.presets import resolve
+
+    config, auc_cm, applied = resolve(preset)
+    overrides = {"seed": seed, "device": resolve_device(device)}
+    if sampler is not None:
+        if sampler not in ("uniform", "sequential", "learned"):
+            fail(f"--sampler {sampler!r}: choose uniform, sequential or learned")
+        overrides["sampler"] = sampler
+    if solver is not None:
+        if solver not in ("numerical", "neural"):
+            fail(f"--solver {solver!r}: choose numerical or neural")
+        overrides["solver"] = solver
+    if hypotheses is not None:
+        if hypotheses < 1:
+            fail(f"--hypotheses must be at least 1 (got {hypotheses})")
+        overrides["hypotheses"] = hypotheses
+    if max_cuboids is not None:
+        if max_cuboids < 1:
+            fail(f"--max-cuboids must be at least 1 (got {max_cuboids})")
+        overrides["max_cuboids"] = max_cuboids
+    if grid_step is not None:
+        if grid_step < 1:
+            fail(f"--grid-step must be at least 1 (got {grid_step})")
+        overrides["grid_step"] = grid_step
+    if no_oai:
+        overrides["occlusion_aware"] = False
+    if refine is not None:
+        overrides["refine"] = refine
+    if fast:
+        overrides["prescore_points"] = 600
+    if auc is not None:
+        auc_cm = tuple(_parse_list(auc, "--auc"))
+        if any(x <= 0 for x in auc_cm):
+            fail(f"--auc {auc!r}: thresholds must be positive (cm)")
+    return replace(config, **overrides), auc_cm, applied
+
+
+def _fmt(mean: float, std: float, decimals: int, runs: int) -> str:
+    if mean is None or not math.isfinite(mean):
+        return "-"
+    return f"{mean:.{decimals}f}" + (f" ± {std:.{decimals}f}" if runs > 1 else "")
+
+
+def _table(report, title: str, cols: list[tuple[str, str, int]]) -> Table:
+    runs = len(report.runs)
+    table = Table(title=title, title_justify="left")
+    for _, header, _ in cols:
+        table.add_column(header, justify="right")
+    table.add_row(*(_fmt(*report.summary.get(k, (math.nan, math.nan)), d, runs) for k, _, d in cols))
+    return table
+
+
+def results_table(report, label: str) -> Table:
+    """The paper's metrics (Table 1 column order), mean ± std over runs."""
+    from cuboidcli.evaluation.metrics import auc_key
+
+    cols = list(COLUMNS) + [(auc_key(cm), f"AUC@{cm:g} %", 1) for cm in report.settings.auc_cm]
+    n = report.runs[0]["frames"]
+    title = f"{label}: {n} frame{'' if n == 1 else 's'}"
+    if len(report.runs) > 1:
+        title += f", mean ± std of {len(report.runs)} runs (seeds {report.seeds[0]}..{report.seeds[-1]})"
+    return _table(report, title, cols)
+
+
+def gt_table(report) -> Table | None:
+    """Recall and precision of ground-truth cuboids (greedy one-to-one matching at 3D IoU), if any."""
+    keys = [k for k in report.runs[0] if k.startswith(("recall_iou", "precision_iou"))]
+    if not keys:
+        return None
+    names = {"recall_iou": "recall@", "precision_iou": "precision@", "_pct": " %"}
+    cols = []
+    for k in keys:
+        header = k
+        for a, b in names.items():
+            header = header.replace(a, b)
+        cols.append((k, header, 1))
+    return _table(report, f"ground-truth cuboids ({report.runs[0]['frames_with_gt']} frames), 3D IoU", cols)
+
+
+def _method_label(config, applied: list[str], fits: Path | None) -> str:
+    if fits is not None:
+        return f"saved fits ({fits.name})"
+    oai = "OAI" if config.occlusion_aware else "no OAI"
+    refined = ", refined" if getattr(config, "refine", False) else ""
+    parts = [", ".join(applied)] if applied else []
+    return " / ".join(parts + [f"{config.sampler}, {config.solver}, {oai}{refined}"])
+
+
+def _running(ev) -> str:
+    r = ev.running
+    auc = next((f"AUC@{k[3:].split('cm')[0]} {v:.1f}%" for k, v in r.items() if k.startswith("auc")), "")
+    oa = r.get("oa_all_cm", math.nan)
+    return (
+        f"|M| {r.get('cuboids', 0):.1f}  cov {r.get('coverage_pct', 0):.1f}%  "
+        f"OA {oa:.1f} cm  {auc}  {r.get('time_s', math.nan):.2f} s/img"
+    )
+
+
+def evaluate(
+    data: Path = typer.Argument(
+        ...,
+        help="Dataset folder: NYU Depth v2 (nyu_depth_v2_labeled.mat + splits.mat) or the generic "
+        "layout (depth/, cameras.json, optional cuboids/).",
+    ),
+    split: str = typer.Option(
+        None, "--split", help="test | train | val (NYU default: test; a folder: per its splits.json)."
+    ),
+    limit: int = typer.Option(None, "--limit", help="Evaluate only the first N frames."),
+    frames: str = typer.Option(None, "--frames", help="Comma-separated frame names, e.g. nyu_0001,nyu_0002."),
+    runs: int = typer.Option(1, "--runs", help="Repeat with seeds SEED..SEED+R-1; report mean ± std."),
+    workers: int = typer.Option(1, "--workers", help="Evaluate frames in N processes (same numbers as 1)."),
+    preset: str = typer.Option(
+        None,
+        "--preset",
+        help="Baseline/variant: default, ours, ours-neural, seqransac-oai, seqransac, uniform, "
+        "paper, outdoor; combine with commas (seqransac,outdoor).",
+    ),
+    sampler: str = typer.Option(None, "--sampler", help="uniform | sequential | learned (default: preset)."),
+    solver: str = typer.Option(None, "--solver", help="numerical | neural (default: preset)."),
+    hypotheses: int = typer.Option(None, "--hypotheses", help="Hypotheses per step |H| (default: 4096)."),
+    max_cuboids: int = typer.Option(None, "--max-cuboids", help="At most this many cuboids (default: 8)."),
+    grid_step: int = typer.Option(
+        None, "--grid-step", help="Fit on every n-th pixel (default: 8, i.e. 60x80 at 480x640)."
+    ),
+    no_oai: bool = typer.Option(False, "--no-oai", help="Plain inlier counting (the no-OAI baselines)."),
+    refine: bool = typer.Option(
+        None, "--refine/--no-refine", help="Winner refinement (default: preset; the paper's presets: off)."
+    ),
+    fast: bool = typer.Option(False, "--fast", help="Approximate scoring (rank hypotheses on 600 points)."),
+    auc: str = typer.Option(None, "--auc", help="AUC upper bounds in cm (default: 20,5; outdoor 50,10)."),
+    output: Path = typer.Option(None, "--output", "-o", help="Write metrics.json and frames.csv here."),
+    save_fits: bool = typer.Option(
+        False, "--save-fits", help="Also write each fit as cuboids/1 JSON: OUT/fits/seed<S>/<frame>.json."
+    ),
+    fits: Path = typer.Option(
+        None,
+        "--fits",
+        help="Evaluate saved cuboids/1 files <DIR>/<frame>.json instead of fitting "
+        "(e.g. OUT/fits/seed0, or another method's output converted to cuboids/1).",
+    ),
+    weights: Path = typer.Option(None, "--weights", help="Folder with network weights (default: shipped)."),
+    seed: int = typer.Option(0, "--seed", help="Seed of the first run."),
+    device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
+) -> None:
+    """Fit every frame and report the paper's metrics: time, |M|, coverage, OA-L2 distances, AUC."""
+    from cuboidcli.evaluation.outputs import write_outputs
+    from cuboidcli.evaluation.runner import EvalSettings, load_frames
+    from cuboidcli.evaluation.runner import evaluate as run
+
+    if runs < 1:
+        fail(f"--runs must be at least 1 (got {runs})")
+    if workers < 1:
+        fail(f"--workers must be at least 1 (got {workers})")
+    if save_fits and output is None:
+        fail("--save-fits writes into the output folder: pass -o OUT_DIR too")
+    if fits is not None and not fits.is_dir():
+        fail(f"--fits {fits}: folder not found")
+    if fits is not None and (runs > 1 or save_fits):
+        fail("--fits evaluates fixed cuboids: drop --runs and --save-fits")
+    if weights is not None and not weights.is_dir():
+        fail(f"--weights {weights}: folder not found")
+    names = _parse_list(frames, "--frames", str) if frames is not None else None
+    with user_errors():
+        config, auc_cm, applied = _config(
+            preset,
+            sampler,
+            solver,
+            hypotheses,
+            max_cuboids,
+            grid_step,
+            no_oai,
+            refine,
+            fast,
+            auc,
+            seed,
+            device,
+        )
+        frame_list, dataset = load_frames(data, split, names, limit)
+        settings = EvalSettings(
+            auc_cm=auc_cm,
+            runs=runs,
+            seed=seed,
+            workers=workers,
+            fits_dir=fits,
+            save_fits_dir=output / "fits" if save_fits else None,
+            weights_dir=weights,
+        )
+        n_runs = len(settings.seeds)
+        columns = (
+            TextColumn("{task.description}"),
+            BarColumn(),
+            MofNCompleteColumn(),
+            TimeRemainingColumn(),
+            TextColumn("{task.fields[running]}"),
+        )
+        with Progress(*columns, console=console, transient=True) as prog:
+            task = prog.add_task("run 1", total=len(frame_list) * n_runs, running="")
+
+            def on_frame(ev) -> None:
+                prog.update(
+                    task,
+                    completed=ev.run * ev.total + ev.done,
+                    running=_running(ev),
+                    description=f"run {ev.run + 1}/{ev.runs}" if ev.runs > 1 else "frames",
+                )
+
+            report = run(frame_list, config, settings, progress=on_frame)
+        label = _method_label(config, applied, fits)
+        out.print(results_table(report, label))
+        if (table := gt_table(report)) is not None:
+            out.print(table)
+        empty = sum(r.get("frames_without_cuboids", 0) for r in report.runs)
+        if empty:
+            console.print(
+                f"[yellow]warning:[/] {empty} fit(s) without any cuboid: their points count with "
+                "zero recall in AUC, the frames are left out of the OA means",
+                highlight=False,
+            )
+        if output is not None:
+            meta = {
+                "command": " ".join(["cuboids", *sys.argv[1:]]),
+                "dataset": dataset,
+                "presets": applied,
+                "method": label,
+                "fits_dir": None if fits is None else str(fits.resolve()),
+                "weights_dir": None if weights is None else str(weights.resolve()),
+            }
+            for p in write_outputs(report, output, meta):
+                out.print(f"wrote {p}")
+            if save_fits:
+                out.print(f"wrote {len(frame_list) * n_runs} fits under {output / 'fits'}")
+
+
+def register(app: typer.Typer) -> None:
+    app.command("evaluate")(evaluate)

@@ -1,0 +1,106 @@
+"""Output files of an evaluation: ``metrics.json`` (aggregates, rows, provenance) and ``frames.csv``."""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import io
+import math
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from cuboidcli import __version__
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.io.atomic import atomic_write_json, atomic_write_text
+
+if TYPE_CHECKING:
+    from cuboidcli.evaluation.runner import EvalReport
+
+
+def weights_hashes(config: FitConfig, weights_dir: Path | None) -> dict[str, str]:
+    """SHA-256 of the weights files in ``weights_dir`` if a learned part (sampler, neural solver) is used."""
+    if weights_dir is None or (config.sampler != "learned" and config.solver != "neural"):
+        return {}
+    files = sorted(
+        p
+        for p in Path(weights_dir).iterdir()
+        if p.is_file() and p.suffix in (".pt", ".pth", ".onnx", ".safetensors")
+    )
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
+
+
+def machine_info() -> dict:
+    """Where the numbers were measured (timings depend on it)."""
+    import platform
+
+    import numba
+    import torch
+
+    return {
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "processor": platform.processor() or platform.machine(),
+        "cpu_count": os.cpu_count(),
+        "torch": torch.__version__,
+        "torch_threads": torch.get_num_threads(),
+        "cuda": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+    }
+
+
+def _clean(obj):
+    """JSON-safe copy: NaN and inf become null, tuples lists, paths strings."""
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, dict):
+        return {str(k): _clean(v) for k, v in obj.items()}
+    if isinstance(obj, list | tuple):
+        return [_clean(v) for v in obj]
+    if isinstance(obj, Path):
+        return str(obj)
+    if isinstance(obj, np.generic):
+        return _clean(obj.item())
+    return obj
+
+
+def frame_rows(report: EvalReport) -> list[dict]:
+    """One row per (run, frame) in reporting units, with the run index and seed first."""
+    return [
+        {"run": r, "seed": seed, **m.row()} for r, seed in enumerate(report.seeds) for m in report.frames[r]
+    ]
+
+
+def write_outputs(report: EvalReport, out_dir: str | os.PathLike, meta: dict | None = None) -> list[Path]:
+    """Write ``metrics.json`` (aggregates, per-frame rows, config, provenance) and ``frames.csv``."""
+    out_dir = Path(out_dir)
+    rows = frame_rows(report)
+    doc = {
+        "schema": "cuboids-eval/1",
+        "version": __version__,
+        **(meta or {}),
+        "config": report.config.to_dict(),
+        "auc_cm": list(report.settings.auc_cm),
+        "seeds": report.seeds,
+        "summary": {k: {"mean": m, "std": s} for k, (m, s) in report.summary.items()},
+        "runs": report.runs,
+        "frames": rows,
+        "weights_sha256": report.weights,
+        "machine": machine_info(),
+    }
+    paths = [atomic_write_json(out_dir / "metrics.json", _clean(doc))]
+    columns: list[str] = []
+    for row in rows:
+        columns += [k for k in row if k not in columns]
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=columns, lineterminator="\n")
+    writer.writeheader()
+    for row in rows:
+        writer.writerow(
+            {k: "" if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}
+        )
+    paths.append(atomic_write_text(out_dir / "frames.csv", buf.getvalue()))
+    return paths

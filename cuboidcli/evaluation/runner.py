@@ -1,0 +1,292 @@
+"""Evaluate a dataset: fit (or load) cuboids per frame, compute the metrics, repeat over seeds, write outputs.
+
+Every frame is fitted independently with ``config.seed`` = the run's seed, so a frame's result does not
+depend on the order of frames or on the process that evaluates it: ``workers > 1`` spreads frames over
+processes and gives the same numbers as ``workers = 1`` (see :func:`evaluate`).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, field, replace
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+
+from cuboidcli.camera import Camera
+from cuboidcli.cuboid import Cuboid
+from cuboidcli.evaluation.metrics import AUC_CM, FrameMetrics, aggregate, frame_metrics, mean_std
+from cuboidcli.evaluation.outputs import weights_hashes
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.io.depth import InputError
+from cuboidcli.io.result import read_result, write_result
+
+
+class EvalFrame(Protocol):
+    """What the runner needs of a frame (:class:`~cuboidcli.io.dataset.Frame`, :class:`.nyu.NyuFrame`)."""
+
+    name: str
+    camera: Camera
+
+    def depth_m(self) -> np.ndarray: ...
+
+    def gt_cuboids(self) -> list[Cuboid] | None: ...
+
+
+@dataclass(frozen=True)
+class EvalSettings:
+    """How to evaluate. Thresholds in cm; seeds of the runs are seed, seed + 1, ..., seed + runs - 1."""
+
+    auc_cm: tuple[float, ...] = AUC_CM
+    runs: int = 1
+    seed: int = 0
+    workers: int = 1
+    save_fits_dir: Path | None = None
+    """Write each frame's cuboids as "cuboids/1" JSON to <dir>/seed<seed>/<frame>.json."""
+    fits_dir: Path | None = None
+    """Evaluate the saved fits <dir>/<frame>.json instead of fitting (one run)."""
+    weights_dir: Path | None = None
+    """Folder of the learned sampler / neural solver weights; None = the estimator's default."""
+
+    @property
+    def seeds(self) -> list[int]:
+        return [self.seed] if self.fits_dir is not None else [self.seed + r for r in range(self.runs)]
+
+
+@dataclass
+class ProgressEvent:
+    """Sent after each frame: run index (0-based), frames done / total in this run, running aggregates."""
+
+    run: int
+    runs: int
+    done: int
+    total: int
+    frame: str
+    running: dict
+
+
+@dataclass
+class EvalReport:
+    config: FitConfig
+    settings: EvalSettings
+    seeds: list[int]
+    frames: list[list[FrameMetrics]]
+    """Per run, in the order of the input frames."""
+    runs: list[dict] = field(default_factory=list)
+    """Aggregates per run (:func:`.metrics.aggregate`)."""
+    summary: dict[str, tuple[float, float]] = field(default_factory=dict)
+    """Mean and std over runs of every aggregate."""
+    weights: dict[str, str] = field(default_factory=dict)
+
+
+def load_frames(
+    data: str | os.PathLike,
+    split: str | None = None,
+    names: Sequence[str] | None = None,
+    limit: int | None = None,
+) -> tuple[list[EvalFrame], dict]:
+    """Frames of a dataset and a description of it: (frames, {"path", "format", "split"}).
+
+    ``data`` is a folder holding the official NYU Depth v2 files (split defaults to test), or a folder in the
+    generic layout of :mod:`cuboidcli.io.dataset` (split from its splits.json; default all frames).
+    ``names`` keeps those frames (in the given order), then ``limit`` keeps the first ones.
+    """
+    from cuboidcli.evaluation.nyu import is_nyu_folder, list_nyu_frames
+    from cuboidcli.io.dataset import list_frames
+
+    if is_nyu_folder(data):
+        split = split or "test"
+        frames: list = list_nyu_frames(data, split)
+        fmt = "nyu_depth_v2_labeled"
+    else:
+        frames = list_frames(data, split)
+        fmt = "folder"
+    if names:
+        by_name = {f.name: f for f in frames}
+        missing = [n for n in names if n not in by_name]
+        if missing:
+            some = ", ".join(list(by_name)[:5])
+            raise InputError(
+                f"--frames: no frame named {missing[0]!r} in {data}"
+                f"{f' (split {split})' if split else ''}; frames are e.g. {some}"
+            )
+        frames = [by_name[n] for n in names]
+    if limit is not None:
+        if limit < 1:
+            raise InputError(f"--limit {limit}: give a positive number of frames")
+        frames = frames[:limit]
+    return frames, {
+        "path": str(Path(data).resolve()),
+        "format": fmt,
+        "split": split,
+        "frames": [f.name for f in frames],
+    }
+
+
+def check_estimator(config: FitConfig, weights_dir: Path | None = None) -> None:
+    """Build the configured solver and sampler once, so that a bad setting or missing weights fails before
+    any frame is evaluated (raises InputError with a one-line message)."""
+    from cuboidcli.fitting.pipeline import make_solver
+    from cuboidcli.fitting.sampling import make_sampler
+
+    try:
+        make_solver(config, weights_dir, None, config.device)
+        make_sampler(config.sampler, weights_dir, config.device)
+    except (ValueError, FileNotFoundError, ImportError) as e:
+        raise InputError(f"cannot run sampler {config.sampler!r} with solver {config.solver!r}: {e}") from e
+
+
+def _input_meta(frame: EvalFrame) -> dict:
+    """What a saved fit records about its input (the keys `cuboids fit` writes, so `cuboids export` works)."""
+    depth_path = getattr(frame, "depth_path", None)
+    rgb_path = getattr(frame, "rgb_path", None)
+    meta = {
+        "frame": frame.name,
+        "depth": None if depth_path is None else str(depth_path),
+        "image": None if rgb_path is None else str(rgb_path),
+        "width": frame.camera.width,
+        "height": frame.camera.height,
+    }
+    if hasattr(frame, "depth_scale"):
+        meta["depth_scale"] = frame.depth_scale
+    if hasattr(frame, "mat_path"):  # NYU labelled file
+        meta.update(mat=str(frame.mat_path), index=frame.index)
+    return meta
+
+
+def _fit_and_save(
+    frame: EvalFrame,
+    depth_m: np.ndarray,
+    config: FitConfig,
+    weights_dir: Path | None,
+    save_fits_dir: Path | None,
+) -> tuple[list[Cuboid], dict]:
+    """Run the estimator on one frame, optionally save its "cuboids/1" result: (cuboids, timing_s)."""
+    from cuboidcli.fitting.frame import make_result
+    from cuboidcli.fitting.pipeline import fit_depth
+
+    try:
+        cuboids, info = fit_depth(depth_m, frame.camera, config, weights_dir=weights_dir)
+    except (ValueError, FileNotFoundError, ImportError) as e:  # bad settings, weights or input: one line
+        raise InputError(f"frame {frame.name}: {e}") from e
+    if save_fits_dir is not None:
+        result = make_result(
+            frame.camera,
+            cuboids,
+            info,
+            config,
+            _input_meta(frame),
+            config.solver,
+            config.sampler,
+            {"weights": None if weights_dir is None else str(weights_dir)},
+        )
+        write_result(Path(save_fits_dir) / f"seed{config.seed}" / f"{frame.name}.json", result)
+    return cuboids, dict(info.timing_s)
+
+
+def evaluate_frame(
+    frame: EvalFrame,
+    config: FitConfig,
+    auc_cm: Sequence[float],
+    save_fits_dir: Path | None = None,
+    fits_dir: Path | None = None,
+    weights_dir: Path | None = None,
+) -> FrameMetrics:
+    """Fit (or load from ``fits_dir``) the cuboids of one frame and compute its metrics.
+
+    Time is the estimator's ``timing_s["total"]`` (input loaded -> cuboids selected; metrics excluded),
+    or the saved file's when evaluating saved fits.
+    """
+    depth = frame.depth_m()
+    if depth.shape != (frame.camera.height, frame.camera.width):
+        raise InputError(
+            f"frame {frame.name}: depth map is {depth.shape[1]}x{depth.shape[0]} but its camera "
+            f"is {frame.camera.width}x{frame.camera.height}"
+        )
+    if fits_dir is not None:
+        path = Path(fits_dir) / f"{frame.name}.json"
+        try:
+            saved = read_result(path)
+        except (FileNotFoundError, ValueError, KeyError) as e:
+            raise InputError(f"frame {frame.name}: cannot read saved fit {path}: {e}") from e
+        cuboids, timing = saved.cuboids, saved.timing_s
+    else:
+        cuboids, timing = _fit_and_save(frame, depth, config, weights_dir, save_fits_dir)
+    total = timing.get("total")
+    return frame_metrics(
+        frame.name,
+        depth,
+        frame.camera,
+        cuboids,
+        auc_cm=tuple(auc_cm),
+        gt=frame.gt_cuboids(),
+        time_s=None if total is None else float(total),
+    )
+
+
+def _worker_init() -> None:
+    import torch
+
+    torch.set_num_threads(1)  # N processes on N cores; results do not depend on it (see module docstring)
+
+
+def _run_frames(frames: Sequence[EvalFrame], args: tuple, pool, on_done: Callable) -> None:
+    """Evaluate every frame, in-process or on ``pool``; ``on_done(index, metrics, n_done)`` as they finish."""
+    if pool is None:
+        for i, frame in enumerate(frames):
+            on_done(i, evaluate_frame(frame, *args), i + 1)
+        return
+    futures = {pool.submit(evaluate_frame, frame, *args): i for i, frame in enumerate(frames)}
+    for n, fut in enumerate(as_completed(futures), start=1):
+        on_done(futures[fut], fut.result(), n)
+
+
+def evaluate(
+    frames: Sequence[EvalFrame],
+    config: FitConfig,
+    settings: EvalSettings,
+    progress: Callable[[ProgressEvent], None] | None = None,
+) -> EvalReport:
+    """Evaluate ``frames`` once per seed; returns per-frame metrics, per-run aggregates and mean/std."""
+    if not frames:
+        raise InputError("no frames to evaluate (check --split, --frames and --limit)")
+    if settings.fits_dir is None:
+        check_estimator(config, settings.weights_dir)
+    seeds = settings.seeds
+    report = EvalReport(config=config, settings=settings, seeds=seeds, frames=[])
+    pool = None
+    if settings.workers > 1:
+        pool = ProcessPoolExecutor(
+            max_workers=settings.workers, mp_context=get_context("spawn"), initializer=_worker_init
+        )
+    try:
+        for r, seed in enumerate(seeds):
+            args = (
+                replace(config, seed=seed),
+                tuple(settings.auc_cm),
+                settings.save_fits_dir,
+                settings.fits_dir,
+                settings.weights_dir,
+            )
+            results: dict[int, FrameMetrics] = {}
+
+            def on_done(i: int, m: FrameMetrics, n_done: int, r=r, results=results) -> None:
+                results[i] = m
+                if progress is not None:
+                    running = aggregate(list(results.values()))
+                    progress(ProgressEvent(r, len(seeds), n_done, len(frames), m.name, running))
+
+            _run_frames(frames, args, pool, on_done)
+            ordered = [results[i] for i in range(len(frames))]
+            report.frames.append(ordered)
+            report.runs.append(aggregate(ordered))
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
+    report.summary = mean_std(report.runs)
+    report.weights = weights_hashes(config, settings.weights_dir)
+    return report

@@ -1,0 +1,89 @@
+"""``cuboids synth`` through its own Typer app (independent of the other subcommands)."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+import typer
+from typer.testing import CliRunner
+
+from cuboidcli.cli import synth as synth_cli
+
+
+@pytest.fixture(scope="module")
+def app() -> typer.Typer:
+    app = typer.Typer()
+    synth_cli.register(app)
+
+    @app.callback()
+    def root() -> None:  # keeps "synth" a subcommand, as in the real app
+        pass
+
+    return app
+
+
+def _run(app, *args):
+    return CliRunner().invoke(app, ["synth", *map(str, args)])
+
+
+def _tree(root):
+    return {p.relative_to(root).as_posix(): p.read_bytes() for p in sorted(root.rglob("*")) if p.is_file()}
+
+
+def test_synth_writes_a_dataset(app, tmp_path):
+    out = tmp_path / "ds"
+    result = _run(app, out, "--count", 2, "--seed", 1, "--width", 96)
+    assert result.exit_code == 0, result.output
+    assert "wrote 2 frames (96x72)" in result.output
+    for folder in ("depth", "rgb", "instances"):
+        assert sorted(p.name for p in (out / folder).iterdir()) == ["000000.png", "000001.png"]
+    cams = json.loads((out / "cameras.json").read_text())
+    assert (
+        set(cams) == {"000000", "000001"} and cams["000000"]["width"] == 96 and cams["000000"]["height"] == 72
+    )
+    assert cams["000000"]["fx"] == pytest.approx(518.8579 * 96 / 640)
+    gt = json.loads((out / "cuboids" / "000001.json").read_text())
+    assert gt["schema"] == "cuboids/1" and gt["settings"]["seed"] == [1, 1]
+    assert json.loads((out / "synth.json").read_text())["seed"] == 1
+
+
+def test_synth_is_byte_identical_across_runs_and_workers(app, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert _run(app, a, "-n", 2, "--seed", 4, "--width", 64).exit_code == 0
+    assert _run(app, b, "-n", 2, "--seed", 4, "--width", 64, "--workers", 2).exit_code == 0
+    assert _tree(a) == _tree(b)
+
+
+def test_synth_depth_flags(app, tmp_path):
+    dense = tmp_path / "dense"
+    assert _run(app, dense, "-n", 1, "--width", 80, "--inpaint").exit_code == 0
+    depth = cv2.imread(str(dense / "depth" / "000000.png"), cv2.IMREAD_UNCHANGED)
+    assert depth.dtype == np.uint16 and (depth > 0).all()
+    clean = tmp_path / "clean"
+    assert _run(app, clean, "-n", 1, "--width", 80, "--clean").exit_code == 0
+    exact = cv2.imread(str(clean / "depth" / "000000.png"), cv2.IMREAD_UNCHANGED)
+    assert (exact > 0).mean() > 0.95  # no holes inside the sensor's range
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["--count", "0"], "--count 0"),
+        (["--preset", "kinect9"], "--preset 'kinect9'"),
+        (["--width", "8"], "too small"),
+        (["--workers", "0"], "--workers 0"),
+    ],
+)
+def test_synth_reports_bad_options_in_one_line(app, tmp_path, args, message):
+    result = _run(app, tmp_path / "ds", *args)
+    assert result.exit_code == 2
+    assert message in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "ds").exists()
+
+
+def test_synth_refuses_a_file_as_output(app, tmp_path):
+    target = tmp_path / "file.txt"
+    target.write_text("x")
+    result = _run(app, target, "-n", 1)
+    assert result.exit_code == 2 and "is a file" in result.output
