@@ -91,9 +91,13 @@ def make_solver(
 
         return NumericalSolver(bounds=bounds, lr=config.solver_lr, iters=config.solver_iters)
     if config.solver == "neural":
-        from cuboidcli.solvers.neural import make_neural_solver
+        from cuboidcli.solvers.neural import NeuralSolver
 
-        return make_neural_solver(weights_dir, bounds=bounds, device=device)
+        weights = None
+        if weights_dir is not None:
+            weights = Path(weights_dir)
+            weights = weights / "solver_v1.pt" if weights.is_dir() else weights
+        return NeuralSolver(weights=weights, device=device, bounds=bounds)
     if config.solver == "onnx":
         from cuboidcli.solvers.onnx import OnnxSolver
 
