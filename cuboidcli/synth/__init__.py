@@ -12,11 +12,12 @@ Public entry points:
 - :func:`generate_scene` — one frame as a :class:`Scene` (arrays and cuboids).
 - :func:`write_dataset` — many frames in the generic dataset layout (``cuboids synth``).
 - :func:`render_boxes` — exact depth and instance images of given cuboids (for render-then-fit tests).
+- :func:`render_world` — render a world composed by hand (as ``scripts/make_sample.py`` does).
 """
 
 from cuboidcli.synth.dataset import frame_name, split_of, write_dataset, write_frame
 from cuboidcli.synth.render import render_boxes
-from cuboidcli.synth.scene import Scene, SceneOptions, generate_scene
+from cuboidcli.synth.scene import Scene, SceneOptions, generate_scene, render_world
 from cuboidcli.synth.sensor import SensorOptions
 
 __all__ = [
@@ -26,6 +27,7 @@ __all__ = [
     "frame_name",
     "generate_scene",
     "render_boxes",
+    "render_world",
     "split_of",
     "write_dataset",
     "write_frame",

@@ -88,9 +88,8 @@ class RayCaster:
         t_hit = out["t_hit"].numpy()
         hit = np.isfinite(t_hit)
         face = np.where(hit, out["primitive_ids"].numpy().astype(np.int64), -1)
-        normal = np.einsum(
-            "hwk,kc->hwc", out["primitive_normals"].numpy(), rotation.astype(np.float32)
-        )  # R^T n
+        # world -> camera: n_c = R^T n_w (for row vectors n_w^T R)
+        normal = np.einsum("hwk,kc->hwc", out["primitive_normals"].numpy(), rotation.astype(np.float32))
         # turn normals towards the camera: the ray direction and the normal must point against each other
         facing = np.einsum("hwk,hwk->hw", normal, dirs_cam)
         normal *= np.where(facing > 0, np.float32(-1.0), np.float32(1.0))[..., None]
@@ -131,10 +130,10 @@ def render_boxes(
     """Render just the given boxes, exactly, as a depth camera would see them.
 
     ``cuboids`` are in the OpenCV camera frame (metres). Returns ``depth_m`` (H, W) float32 z-depth in
-    metres (0 = no return) and ``instance`` (H, W) int32: 1 + the index of the visible cuboid, 0 for none.
-    With ``noise`` the default sensor model of :class:`cuboidcli.synth.sensor.SensorOptions` (noise,
-    millimetre quantisation, holes) is applied with a generator seeded by ``seed``; ``instance`` is then
-    still the noise-free visibility.
+    metres (0 = no return; without ``noise`` there is no range limit either) and ``instance`` (H, W)
+    int32: 1 + the index of the visible cuboid, 0 for none. With ``noise`` the default sensor model of
+    :class:`cuboidcli.synth.sensor.SensorOptions` (noise, millimetre quantisation, holes, 0.4-10 m range)
+    is applied with a generator seeded by ``seed``; ``instance`` is then still the noise-free visibility.
     """
     hits, owner = cast_boxes(cuboids, camera)
     instance = np.where(hits.hit, owner[np.maximum(hits.face, 0)] + 1, 0).astype(np.int32)
