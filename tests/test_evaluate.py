@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import hashlib
 import json
 import math
 import struct
@@ -20,6 +21,7 @@ from cuboidcli.camera import Camera
 from cuboidcli.cli.evaluate import register
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.nyu import list_nyu_frames, read_mat_v5, read_splits
+from cuboidcli.evaluation.outputs import weights_hashes
 from cuboidcli.evaluation.presets import resolve
 from cuboidcli.evaluation.raycast import render_depth
 from cuboidcli.evaluation.runner import EvalSettings, evaluate, load_frames
@@ -158,6 +160,16 @@ def test_unusable_estimator_settings_fail_before_any_frame(folder):
         evaluate(frames, FitConfig(sampler="bogus"), EvalSettings())
 
 
+def test_weights_of_learned_parts_are_hashed(tmp_path):
+    weights = tmp_path / "solver_v1.pt"
+    weights.write_bytes(b"not really a checkpoint")
+    hashes = weights_hashes(FitConfig(solver="neural"), tmp_path)
+    sha = hashlib.sha256(b"not really a checkpoint").hexdigest()
+    assert hashes == {"solver": {"path": str(weights), "sha256": sha}}
+    assert hashes == weights_hashes(FitConfig(solver="neural"), weights)
+    assert weights_hashes(FitConfig(), tmp_path) == {}  # nothing learned in use
+
+
 def test_presets_combine_and_options_override_them():
     config, auc_cm, applied = resolve("seqransac,outdoor")
     assert (config.sampler, config.occlusion_aware, config.refine) == ("sequential", False, False)
@@ -228,6 +240,13 @@ def test_splits_reader_gives_paper_splits(tmp_path, compress):
     assert len(splits["test"]) == 654 and len(splits["train"]) == 600 and len(splits["val"]) == 195
     assert splits["test"] == list(test - 1)
     assert splits["train"] + splits["val"] == list(train - 1)
+
+
+def test_splits_reader_accepts_a_v73_hdf5_file(tmp_path):
+    with h5py.File(tmp_path / "splits.mat", "w") as f:  # MATLAB v7.3 stores column vectors as (1, N)
+        f.create_dataset("testNdxs", data=np.array([[3.0, 1.0]]))
+        f.create_dataset("trainNdxs", data=np.array([[2.0, 4.0, 5.0]]))
+    assert read_splits(tmp_path / "splits.mat") == {"test": [2, 0], "train": [1, 3, 4], "val": []}
 
 
 def test_labeled_mat_reader_undoes_matlab_transpose(tmp_path):

@@ -176,7 +176,9 @@ def evaluate(
         help="Evaluate saved cuboids/1 files <DIR>/<frame>.json instead of fitting "
         "(e.g. OUT/fits/seed0, or another method's output converted to cuboids/1).",
     ),
-    weights: Path = typer.Option(None, "--weights", help="Folder with network weights (default: shipped)."),
+    weights: Path = typer.Option(
+        None, "--weights", help="Network weights: a folder or a .pt file (default: shipped)."
+    ),
     seed: int = typer.Option(0, "--seed", help="Seed of the first run."),
     device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
 ) -> None:
@@ -195,8 +197,8 @@ def evaluate(
         fail(f"--fits {fits}: folder not found")
     if fits is not None and (runs > 1 or save_fits):
         fail("--fits evaluates fixed cuboids: drop --runs and --save-fits")
-    if weights is not None and not weights.is_dir():
-        fail(f"--weights {weights}: folder not found")
+    if weights is not None and not weights.exists():
+        fail(f"--weights {weights}: no such folder or file")
     names = _parse_list(frames, "--frames", str) if frames is not None else None
     with user_errors():
         config, auc_cm, applied = _config(

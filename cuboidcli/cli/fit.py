@@ -30,8 +30,8 @@ def _config(hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_
         fail(f"--max-cuboids must be at least 1 (got {max_cuboids})")
     if grid_step < 1:
         fail(f"--grid-step must be at least 1 (got {grid_step})")
-    if sampler not in ("uniform", "sequential", "learned"):
-        fail(f"--sampler {sampler!r}: choose uniform, sequential or learned")
+    if sampler not in ("uniform", "sequential", "local", "learned"):
+        fail(f"--sampler {sampler!r}: choose sequential, local, uniform or learned")
     if solver not in ("numerical", "neural", "onnx"):
         fail(f"--solver {solver!r}: choose numerical, neural or onnx")
     return FitConfig(
@@ -128,7 +128,7 @@ def fit(
     ),
     hypotheses: int = typer.Option(4096, "--hypotheses", help="Cuboid hypotheses per step |H|."),
     max_cuboids: int = typer.Option(8, "--max-cuboids", help="At most this many cuboids."),
-    sampler: str = typer.Option("sequential", "--sampler", help="sequential | uniform | learned."),
+    sampler: str = typer.Option("sequential", "--sampler", help="sequential | local | uniform | learned."),
     solver: str = typer.Option("numerical", "--solver", help="numerical | neural | onnx."),
     weights: Path = typer.Option(
         None, "--weights", help="Folder with network weights [default: shipped models/]."

@@ -20,16 +20,27 @@ if TYPE_CHECKING:
     from cuboidcli.evaluation.runner import EvalReport
 
 
-def weights_hashes(config: FitConfig, weights_dir: Path | None) -> dict[str, str]:
-    """SHA-256 of the weights files in ``weights_dir`` if a learned part (sampler, neural solver) is used."""
-    if weights_dir is None or (config.sampler != "learned" and config.solver != "neural"):
-        return {}
-    files = sorted(
-        p
-        for p in Path(weights_dir).iterdir()
-        if p.is_file() and p.suffix in (".pt", ".pth", ".onnx", ".safetensors")
-    )
-    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in files}
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def weights_hashes(config: FitConfig, weights: Path | None) -> dict[str, dict]:
+    """Path and SHA-256 of every weights file the configuration loads (neural solver, learned sampler).
+
+    ``weights`` is what ``--weights`` gave (a folder or a file), None for the shipped defaults.
+    """
+    files: dict[str, Path] = {}
+    if config.solver == "neural":
+        from cuboidcli.solvers.neural import default_weights_path
+
+        if weights is None:
+            files["solver"] = default_weights_path()
+        else:
+            files["solver"] = weights / "solver_v1.pt" if weights.is_dir() else weights
+    if config.sampler == "learned" and weights is not None:
+        found = sorted(weights.glob("sampler*.pt")) if weights.is_dir() else [weights]
+        files.update({f"sampler:{p.name}": p for p in found})
+    return {role: {"path": str(p), "sha256": _sha256(p)} for role, p in files.items() if p.is_file()}
 
 
 def machine_info() -> dict:

@@ -80,7 +80,7 @@ class EvalReport:
     """Aggregates per run (:func:`.metrics.aggregate`)."""
     summary: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Mean and std over runs of every aggregate."""
-    weights: dict[str, str] = field(default_factory=dict)
+    weights: dict[str, dict] = field(default_factory=dict)
 
 
 def load_frames(

@@ -161,8 +161,12 @@ def fit_points(
             pts, prep.grid_index, prep.grid_shape, prep.depth_grid, state.float(), len(cuboids)
         )
         with torch.no_grad():
-            p, q = sampler.distributions(ctx)
-        idx = draw_minimal_sets(p, q, config.hypotheses, config.min_set, gen).to(pts.device)
+            if hasattr(sampler, "draw"):
+                idx = sampler.draw(ctx, config.hypotheses, config.min_set, gen)
+            else:
+                p, q = sampler.distributions(ctx)
+                idx = draw_minimal_sets(p, q, config.hypotheses, config.min_set, gen)
+        idx = idx.to(pts.device)
         t2 = time.perf_counter()
         timing["sample"] += t2 - t
         centers, half, rot = solver(pts[idx])

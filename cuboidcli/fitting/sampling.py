@@ -65,6 +65,46 @@ class SequentialSampler:
         return (w / total)[None], torch.ones(1, dtype=torch.float64, device=w.device)
 
 
+class LocalSampler(SequentialSampler):
+    """Sequential-RANSAC weights for the first point of a minimal set, the other C - 1 points drawn from a
+    window of the fitting grid around it (NAPSAC-style localised sampling; not in the paper).
+
+    A structure covering a fraction f of the points yields an all-inlier set with probability ~f^6 under
+    global sampling (1e-4 for f = 0.2), so small furniture is rarely found without a learned sampler; drawn
+    from a neighbourhood, the six points usually share a structure. The window half-width is drawn per
+    hypothesis from [2, 12] grid cells (16-96 pixels at the default grid step) to cover several scales.
+    """
+
+    name = "local"
+    min_half_width = 2
+    max_half_width = 12
+
+    def draw(self, ctx: SamplingContext, hypotheses: int, min_set: int, generator: torch.Generator) -> Tensor:
+        p, q = self.distributions(ctx)
+        seeds = draw_minimal_sets(p, q, hypotheses, 1, generator)[:, 0]
+        hs, ws = ctx.grid_shape
+        gi = ctx.grid_index.cpu()
+        cell_to_point = torch.full((hs * ws,), -1, dtype=torch.long)
+        cell_to_point[gi] = torch.arange(gi.numel())
+        rows, cols = gi[seeds] // ws, gi[seeds] % ws
+        half = torch.randint(
+            self.min_half_width, self.max_half_width + 1, (hypotheses, 1), generator=generator
+        )
+        idx = seeds[:, None].repeat(1, min_set)
+        todo = torch.ones(hypotheses, min_set - 1, dtype=torch.bool)
+        for _ in range(6):  # redraw cells without valid depth a few times, then keep the seed point
+            u = torch.rand(hypotheses, min_set - 1, 2, generator=generator)
+            r = (rows[:, None] + ((2 * u[..., 0] - 1) * (half + 0.5)).round().long()).clamp(0, hs - 1)
+            c = (cols[:, None] + ((2 * u[..., 1] - 1) * (half + 0.5)).round().long()).clamp(0, ws - 1)
+            cand = cell_to_point[r * ws + c]
+            take = todo & (cand >= 0)
+            idx[:, 1:] = torch.where(take, cand, idx[:, 1:])
+            todo &= ~take
+            if not todo.any():
+                break
+        return idx
+
+
 def draw_minimal_sets(
     p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
 ) -> Tensor:
@@ -92,8 +132,10 @@ def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:
         return UniformSampler()
     if name == "sequential":
         return SequentialSampler()
+    if name == "local":
+        return LocalSampler()
     if name == "learned":
         from cuboidcli.learn.sampler_net import LearnedSampler
 
         return LearnedSampler.load(weights_dir, device=device)
-    raise ValueError(f"unknown sampler {name!r}; choose uniform, sequential or learned")
+    raise ValueError(f"unknown sampler {name!r}; choose uniform, sequential, local or learned")
