@@ -123,3 +123,23 @@ def test_option_errors(tmp_path, room_png):
     assert r.exit_code == 2 and "--depth" in r.output
     r = run("fit", "--depth", room_png, "--solver", "onnx")
     assert r.exit_code == 2 and "--onnx" in r.output
+
+
+def test_depth_formats_npy_npz_exr(tmp_path, room_depth):
+    from cuboidcli.io.depth import read_depth
+
+    depth = room_depth[0]
+    np.save(tmp_path / "d.npy", depth)
+    np.savez(tmp_path / "d.npz", depth=depth)
+    for name in ("d.npy", "d.npz"):
+        np.testing.assert_array_equal(read_depth(tmp_path / name), depth)
+    OpenEXR = pytest.importorskip("OpenEXR")
+    with OpenEXR.File({"type": OpenEXR.scanlineimage}, {"Z": depth.astype(np.float32)}) as f:
+        f.write(str(tmp_path / "d.exr"))
+    np.testing.assert_array_equal(read_depth(tmp_path / "d.exr"), depth)
+    nan = depth.copy()
+    nan[:10] = np.nan
+    nan[10:20] = np.inf
+    np.save(tmp_path / "nan.npy", nan)
+    got = read_depth(tmp_path / "nan.npy")
+    assert (got[:20] == 0).all() and np.isfinite(got).all()

@@ -1,8 +1,8 @@
 """Reading depth maps, RGB images and intrinsics, with sanity checks a user can act on.
 
 Depth files: 16-bit PNG (scaled by ``depth_scale`` metres per unit), ``.npy`` / ``.npz`` in metres,
-``.exr`` in metres (needs OpenCV built with OpenEXR; set OPENCV_IO_ENABLE_OPENEXR=1). 0, NaN and inf
-mean missing. Every problem raises :class:`InputError` with a one-line message.
+``.exr`` in metres (optional OpenEXR package: ``pip install 'cuboids[exr]'``). 0, NaN and inf mean
+missing. Every problem raises :class:`InputError` with a one-line message.
 """
 
 from __future__ import annotations
@@ -53,6 +53,26 @@ def _imread_unchanged(path: Path) -> np.ndarray:
     return img
 
 
+def _read_exr(path: Path) -> np.ndarray:
+    """First depth-like channel of an OpenEXR file (Z, depth, R, Y, or the only one), in metres."""
+    try:
+        import OpenEXR
+    except ImportError as e:
+        raise InputError(
+            f"reading {path.name} needs the optional OpenEXR package: pip install 'cuboids[exr]'"
+        ) from e
+    try:
+        with OpenEXR.File(str(path)) as f:
+            channels = f.channels()
+            for name in ("Z", "depth", "Depth", "R", "Y", *channels.keys()):
+                if name in channels:
+                    data = np.asarray(channels[name].pixels)
+                    return data[..., 0] if data.ndim == 3 else data
+    except Exception as e:  # OpenEXR raises plain exceptions for corrupt files
+        raise InputError(f"cannot decode EXR file {path}: {e}") from e
+    raise InputError(f"{path} holds no image channels")
+
+
 def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarray:
     """Depth map in metres, float32 (H, W); missing values become 0."""
     path = Path(path)
@@ -71,8 +91,7 @@ def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarra
                     raise InputError(f"{path} holds no arrays; save the depth map as np.savez(f, depth=...)")
                 depth = z[key]
         elif suffix == ".exr":
-            os.environ.setdefault("OPENCV_IO_ENABLE_OPENEXR", "1")
-            depth = _imread_unchanged(path)
+            depth = _read_exr(path)
         else:
             depth = _imread_unchanged(path)
     except InputError:
@@ -80,7 +99,7 @@ def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarra
     except (ValueError, OSError) as e:
         raise InputError(f"cannot read depth file {path}: {e}") from e
     if depth.ndim == 3:
-        if depth.shape[2] == 1 or (suffix == ".exr"):
+        if depth.shape[2] == 1:
             depth = depth[..., 0]
         else:
             raise InputError(
