@@ -43,6 +43,9 @@ _evaluate.register(app)
 from cuboidcli.cli import synth as _synth  # noqa: E402
 
 _synth.register(app)
+from cuboidcli.cli import train as _train  # noqa: E402
+
+_train.register(app)
 
 if __name__ == "__main__":
     app()

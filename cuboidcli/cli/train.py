@@ -1,0 +1,125 @@
+"""``cuboids train ...``: training commands of the learned components. Options only; the work is in
+:mod:`cuboidcli.learn`. Each command is one function decorated with ``@train_app.command``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import typer
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TextColumn,
+    TimeElapsedColumn,
+    TimeRemainingColumn,
+)
+
+from cuboidcli.cli.common import console, fail, out, resolve_device
+
+train_app = typer.Typer(help="Train the learned components (neural solver, ...).", no_args_is_help=True)
+
+
+def register(app: typer.Typer) -> None:
+    app.add_typer(train_app, name="train")
+
+
+def _progress() -> Progress:
+    return Progress(
+        TextColumn("[bold]{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TextColumn("{task.fields[status]}"),
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        console=console,
+    )
+
+
+@train_app.command("solver")
+def solver(
+    iters: int = typer.Option(50000, "--iters", help="Optimizer steps (the paper: 150k at batch 4096, GPU)."),
+    batch: int = typer.Option(256, "--batch", help="Synthetic minimal sets per step."),
+    lr: float = typer.Option(3e-3, "--lr", help="Peak Adam learning rate (warm-up, then cosine decay)."),
+    width: int = typer.Option(64, "--width", help="Feature channels d of the network (128 in the paper)."),
+    layers: int = typer.Option(2, "--layers", help="Transformer encoder layers (4 in the paper)."),
+    heads: int = typer.Option(4, "--heads", help="Attention heads; must divide --width."),
+    ff: int = typer.Option(128, "--ff", help="Feed-forward hidden size of each layer."),
+    out_dir: Path = typer.Option(Path("runs/solver"), "--out", help="Folder for logs and checkpoints."),
+    resume: Path | None = typer.Option(
+        None,
+        "--resume",
+        help="Continue from a training checkpoint (last.pt / step_*.pt) exactly; "
+        "schedule, data and net shape are taken from it.",
+    ),
+    seed: int = typer.Option(0, "--seed", help="Seeds the initial weights and every synthetic batch."),
+    threads: int = typer.Option(1, "--threads", help="CPU threads for torch (the cores may be shared)."),
+    device: str = typer.Option("cpu", "--device", help="cpu, cuda or auto."),
+    max_minutes: float | None = typer.Option(
+        None,
+        "--max-minutes",
+        help="Time budget: the lr decays over whichever runs out first, --iters or these minutes of wall "
+        "time, and training stops there (not bit-reproducible then).",
+    ),
+    val_every: int = typer.Option(1000, "--val-every", help="Validate and keep the best every N steps."),
+) -> None:
+    """Pre-train the neural cuboid solver on synthetic boxes; best weights go to OUT/best.pt."""
+    from cuboidcli.learn.solver_net import SolverNetConfig
+    from cuboidcli.learn.solver_train import SolverTrainConfig, train_solver
+
+    for name, value in (
+        ("--iters", iters),
+        ("--batch", batch),
+        ("--width", width),
+        ("--layers", layers),
+        ("--heads", heads),
+        ("--ff", ff),
+        ("--threads", threads),
+        ("--val-every", val_every),
+    ):
+        if value < 1:
+            fail(f"{name} must be at least 1 (got {value})")
+    if width % heads:
+        fail(f"--width {width} is not divisible by --heads {heads}; pick e.g. --heads 4")
+    if lr <= 0:
+        fail(f"--lr must be positive (got {lr})")
+    if resume is not None and not resume.is_file():
+        fail(f"--resume {resume}: no such file; pass {out_dir / 'last.pt'} or a step_*.pt checkpoint")
+    cfg = SolverTrainConfig(
+        iters=iters,
+        batch=batch,
+        lr=lr,
+        warmup=min(500, max(1, iters // 20)),
+        seed=seed,
+        threads=threads,
+        device=resolve_device(device),
+        max_minutes=max_minutes,
+        val_every=val_every,
+        ckpt_every=val_every,
+    )
+    net_cfg = SolverNetConfig(width=width, layers=layers, heads=heads, ff=ff)
+
+    with _progress() as progress:
+        task = progress.add_task("solver", total=iters, status="")
+
+        def on_event(record: dict) -> None:
+            kind = record["event"]
+            if kind == "start":
+                progress.update(task, completed=record["iteration"], total=record["iters"])
+                console.print(f"solver net: {record['parameters']:,} parameters; logs in {out_dir}")
+            elif kind == "train":
+                status = f"loss {record['loss_m2']:.2e} m² · {record['sets_per_s']:,.0f} sets/s"
+                progress.update(task, completed=record["iteration"], status=status)
+            elif kind == "val":
+                star = " (best)" if record["best"] else ""
+                console.print(
+                    f"step {record['iteration']}: validation mean distance {record['clean_mean_cm']:.2f} cm "
+                    f"clean, {record['noisy_mean_cm']:.2f} cm noisy{star}"
+                )
+
+        try:
+            final = train_solver(cfg, net_cfg, out_dir, resume=resume, on_event=on_event)
+        except ValueError as e:
+            fail(str(e))
+    note = " (stopped by --max-minutes)" if final["timed_out"] else ""
+    out.print(f"done at step {final['iteration']}{note}; best weights: {final['best']}")

@@ -1,0 +1,328 @@
+"""Pre-training of the neural cuboid solver on synthetic minimal sets (paper appendix "Neural Cuboid Solver").
+
+Loss: the mean squared point-to-surface distance d(h, y)^2 (Eq. 2) of each set's points to the predicted
+cuboid, averaged over the batch; flagged outlier points are left out so that the net learns to fit the
+box the other points lie on. Batches are generated on the fly, each from a seed derived from the run seed
+and the iteration, so a run is reproducible and ``resume`` continues it exactly. Adam with a linear
+warm-up and a cosine decay, gradient-norm clipping.
+
+Files in ``out_dir``: ``config.json`` (resolved configs), ``log.jsonl`` (one record per log / validation
+event), ``last.pt`` and ``step_XXXXXXX.pt`` (training state: weights, optimizer, RNG, iteration; the last
+``keep_snapshots`` are kept) and ``best.pt`` (weights-only, the lowest validation residual so far).
+This module prints nothing: progress goes to the ``on_event`` callback.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import torch
+from torch import Tensor
+
+from cuboidcli.geometry.kernels import cuboid_sq_distance
+from cuboidcli.io.atomic import atomic_write, atomic_write_json
+from cuboidcli.learn.solver_data import SyntheticBatch, SyntheticConfig, seeded_batch
+from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict, parameter_count
+
+#: Seeds of the held-out validation sets live far from the training seeds (seed * 2^32 + iteration).
+VAL_SEED = 2**62 + 2024
+
+
+@dataclass(frozen=True)
+class SolverTrainConfig:
+    """Optimisation schedule and bookkeeping of a pre-training run."""
+
+    iters: int = 50000
+    """Optimizer steps (the paper: 150k at batch 4096 on a GPU)."""
+    batch: int = 256
+    """Minimal sets per step."""
+    lr: float = 3e-3
+    """Peak Adam learning rate (the paper: 1e-4, constant)."""
+    warmup: int = 500
+    """Linear warm-up steps from lr / warmup to lr."""
+    final_lr_ratio: float = 0.02
+    """The cosine decay ends at lr * final_lr_ratio."""
+    grad_clip: float = 1.0
+    """Max global gradient norm."""
+    seed: int = 0
+    """Seeds the initial weights and every training batch."""
+    threads: int = 1
+    """torch CPU threads (the machine's cores are shared)."""
+    device: str = "cpu"
+    log_every: int = 50
+    val_every: int = 1000
+    """Validate and maybe write ``best.pt`` every so many steps (and at the end)."""
+    ckpt_every: int = 1000
+    keep_snapshots: int = 3
+    val_sets: int = 4096
+    """Sets in each held-out validation set (one clean, one with noise and outliers)."""
+    max_minutes: float | None = None
+    """Time budget, minutes of training wall time summed over resumed sessions. The cosine decay then
+    follows whichever budget is used up faster, steps or time, and the run ends when either is spent
+    (with a validation and a checkpoint). Such a run depends on the machine's speed: not bit-exact."""
+
+
+def set_sq_distances(points: Tensor, centers: Tensor, half_sizes: Tensor, rotations: Tensor) -> Tensor:
+    """d(h_b, y)^2 of each set's own points to its own cuboid: points (B, C, 3) -> (B, C), m^2."""
+    local = torch.einsum("bck,bkj->bcj", points - centers[:, None, :], rotations)
+    return cuboid_sq_distance(local, half_sizes)
+
+
+def masked_set_mean(values: Tensor, mask: Tensor) -> Tensor:
+    """Mean of (B, C) values over each set's masked entries: (B,). Every set has at least one inlier."""
+    m = mask.to(values.dtype)
+    return (values * m).sum(1) / m.sum(1).clamp_min(1.0)
+
+
+def solver_loss(net: SolverNet, points: Tensor, inlier: Tensor) -> Tensor:
+    """l_solver of the paper over the inlier points, averaged over the batch: points (B, C, 3), inlier
+    (B, C) -> scalar, m^2."""
+    return masked_set_mean(set_sq_distances(points, *net(points)), inlier).mean()
+
+
+def lr_at(it: int, cfg: SolverTrainConfig, time_fraction: float = 0.0) -> float:
+    """Learning rate of step ``it`` (0-based): linear warm-up, then cosine down to final_lr_ratio * lr.
+
+    ``time_fraction``: share of the time budget used so far; the decay follows it when it runs ahead.
+    """
+    if it < cfg.warmup:
+        return cfg.lr * (it + 1) / cfg.warmup
+    span = max(1, cfg.iters - cfg.warmup)
+    progress = min(1.0, max((it - cfg.warmup) / span, time_fraction))
+    cosine = 0.5 * (1.0 + math.cos(math.pi * progress))
+    return cfg.lr * (cfg.final_lr_ratio + (1.0 - cfg.final_lr_ratio) * cosine)
+
+
+def validation_sets(n: int, data: SyntheticConfig) -> dict[str, SyntheticBatch]:
+    """The fixed held-out sets: ``clean`` (the paper's distribution) and ``noisy`` (noise + outliers)."""
+    return {"clean": seeded_batch(n, data.clean(), VAL_SEED), "noisy": seeded_batch(n, data, VAL_SEED + 1)}
+
+
+def evaluate_solver(solver: Callable, batch: SyntheticBatch) -> dict:
+    """Residuals of a CuboidSolver on a batch, over the inlier points.
+
+    ``msd_m2``: mean over sets of the set's mean squared distance (the training loss);
+    ``mean_cm`` / ``median_cm``: mean and median point-to-surface distance, cm; ``seconds``: solver time.
+    """
+    start = time.perf_counter()
+    centers, half_sizes, rotations = solver(batch.points)
+    seconds = time.perf_counter() - start
+    sq = set_sq_distances(batch.points, centers.float(), half_sizes.float(), rotations.float())
+    dist_cm = sq[batch.inlier].sqrt() * 100.0
+    return {
+        "msd_m2": masked_set_mean(sq, batch.inlier).mean().item(),
+        "mean_cm": dist_cm.mean().item(),
+        "median_cm": dist_cm.median().item(),
+        "seconds": seconds,
+    }
+
+
+def save_checkpoint(blob: dict, path: str | Path) -> Path:
+    """``torch.save`` through a temporary file, so an interrupted run never leaves a truncated checkpoint."""
+    return atomic_write(path, lambda tmp: torch.save(blob, tmp))
+
+
+def _net_solver(net: SolverNet) -> Callable:
+    from cuboidcli.solvers.neural import NeuralSolver
+
+    return NeuralSolver(net=net, device=next(net.parameters()).device)
+
+
+def _train_state(net, opt, it: int, best: float, elapsed_s: float, cfg, net_cfg, data_cfg) -> dict:
+    return {
+        "kind": "solver-train-state",
+        "config": net_cfg.to_dict(),
+        "state_dict": net.state_dict(),
+        "optimizer": opt.state_dict(),
+        "rng": torch.get_rng_state(),
+        "iteration": it,
+        "best_msd_m2": best,
+        "elapsed_s": elapsed_s,
+        "train_config": asdict(cfg),
+        "data_config": data_cfg.to_dict(),
+    }
+
+
+def train_solver(
+    cfg: SolverTrainConfig,
+    net_cfg: SolverNetConfig,
+    out_dir: str | Path,
+    data_cfg: SyntheticConfig | None = None,
+    resume: str | Path | None = None,
+    on_event: Callable[[dict], None] | None = None,
+) -> dict:
+    """Run (or resume) pre-training; returns the final record (iteration, best validation, paths).
+
+    Exactly reproducible from ``cfg.seed`` unless a time budget (``max_minutes``) shapes the schedule.
+
+    When resuming, the schedule, data and net shape come from the checkpoint; only ``threads``,
+    ``device``, ``max_minutes`` and the logging intervals of ``cfg`` apply.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    emit = on_event or (lambda record: None)
+    state = None
+    if resume is not None:
+        state = torch.load(resume, map_location="cpu", weights_only=True)
+        if not isinstance(state, dict) or state.get("kind") != "solver-train-state":
+            raise ValueError(f"{resume} is not a training checkpoint (use last.pt or step_*.pt)")
+        keep = ("threads", "device", "max_minutes", "log_every", "val_every", "ckpt_every", "keep_snapshots")
+        cfg = replace(SolverTrainConfig(**state["train_config"]), **{k: getattr(cfg, k) for k in keep})
+        net_cfg = SolverNetConfig.from_dict(state["config"])
+        data_cfg = SyntheticConfig(**state["data_config"])
+    data_cfg = data_cfg or SyntheticConfig()
+    torch.set_num_threads(cfg.threads)
+    device = torch.device(cfg.device)
+
+    torch.manual_seed(cfg.seed)
+    net = SolverNet(net_cfg).to(device)
+    opt = torch.optim.Adam(net.parameters(), lr=lr_at(0, cfg))
+    start, best, spent_s = 0, math.inf, 0.0
+    if state is not None:
+        net.load_state_dict(state["state_dict"])
+        opt.load_state_dict(state["optimizer"])
+        torch.set_rng_state(state["rng"])
+        start, best, spent_s = int(state["iteration"]), float(state["best_msd_m2"]), float(state["elapsed_s"])
+    resolved = {"train": asdict(cfg), "net": net_cfg.to_dict(), "data": data_cfg.to_dict()}
+    resolved["resumed_from"] = None if resume is None else str(resume)
+    atomic_write_json(out_dir / "config.json", resolved)
+    val = validation_sets(cfg.val_sets, data_cfg)
+    log_path = out_dir / "log.jsonl"
+    n_params = parameter_count(net)
+    emit({"event": "start", "iteration": start, "iters": cfg.iters, "parameters": n_params})
+
+    def log(record: dict) -> None:
+        with log_path.open("a", encoding="utf-8") as f:
+            f.write(json.dumps(record) + "\n")
+        emit(record)
+
+    def validate(it: int) -> dict:
+        net.eval()
+        metrics = {name: evaluate_solver(_net_solver(net), batch) for name, batch in val.items()}
+        net.train()
+        return metrics
+
+    def elapsed() -> float:
+        return spent_s + time.perf_counter() - t0
+
+    def time_fraction() -> float:
+        return 0.0 if cfg.max_minutes is None else elapsed() / (60.0 * cfg.max_minutes)
+
+    def save_state(it: int) -> None:
+        blob = _train_state(net, opt, it, best, elapsed(), cfg, net_cfg, data_cfg)
+        save_checkpoint(blob, out_dir / f"step_{it:07d}.pt")
+        save_checkpoint(blob, out_dir / "last.pt")
+        for old in sorted(out_dir.glob("step_*.pt"))[: -cfg.keep_snapshots]:
+            old.unlink(missing_ok=True)
+
+    t0 = time.perf_counter()
+    window_t, window_loss, window_n = time.perf_counter(), 0.0, 0
+    it = start
+    net.train()
+    while it < cfg.iters:
+        batch = seeded_batch(cfg.batch, data_cfg, cfg.seed * 2**32 + it)
+        points, inlier = batch.points.to(device), batch.inlier.to(device)
+        for group in opt.param_groups:
+            group["lr"] = lr = lr_at(it, cfg, time_fraction())
+        loss = solver_loss(net, points, inlier)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), cfg.grad_clip)
+        opt.step()
+        it += 1
+        window_loss += loss.item()
+        window_n += 1
+        timed_out = time_fraction() >= 1.0
+        last = it == cfg.iters or timed_out
+        if it % cfg.log_every == 0 or last:
+            now = time.perf_counter()
+            log(
+                {
+                    "event": "train",
+                    "iteration": it,
+                    "loss_m2": window_loss / window_n,
+                    "lr": lr,
+                    "grad_norm": float(grad_norm),
+                    "sets_per_s": window_n * cfg.batch / max(now - window_t, 1e-9),
+                    "elapsed_s": elapsed(),
+                }
+            )
+            window_t, window_loss, window_n = now, 0.0, 0
+        if it % cfg.val_every == 0 or last:
+            metrics = validate(it)
+            improved = metrics["noisy"]["msd_m2"] < best
+            if improved:
+                best = metrics["noisy"]["msd_m2"]
+                meta = {
+                    "iteration": it,
+                    "validation": metrics,
+                    "parameters": n_params,
+                    "train_config": asdict(cfg),
+                    "data_config": data_cfg.to_dict(),
+                }
+                save_checkpoint(checkpoint_dict(net, meta), out_dir / "best.pt")
+            log(
+                {
+                    "event": "val",
+                    "iteration": it,
+                    "best": improved,
+                    "elapsed_s": elapsed(),
+                    **{f"{k}_{m}": v for k, ms in metrics.items() for m, v in ms.items()},
+                }
+            )
+            window_t = time.perf_counter()  # keep validation time out of the throughput
+        if it % cfg.ckpt_every == 0 or last:
+            save_state(it)
+        if timed_out:
+            break
+    final = {
+        "event": "done",
+        "iteration": it,
+        "best_noisy_msd_m2": best,
+        "timed_out": it < cfg.iters,
+        "elapsed_s": elapsed(),
+        "best": str(out_dir / "best.pt"),
+        "last": str(out_dir / "last.pt"),
+    }
+    log(final)
+    return final
+
+
+def median_seconds(solver: Callable, points: Tensor, repeats: int = 5) -> float:
+    """Median wall time of ``solver(points)`` over ``repeats`` calls, after one warm-up call."""
+    solver(points)
+    times = []
+    for _ in range(repeats):
+        start = time.perf_counter()
+        solver(points)
+        times.append(time.perf_counter() - start)
+    return sorted(times)[len(times) // 2]
+
+
+def compare_on_validation(weights: str | Path | None = None, n_sets: int = 4096, repeats: int = 5) -> dict:
+    """The model card's numbers: residuals of the neural solver (``weights``, None = shipped), the numerical
+    solver (PCA + 50 Adam steps) and its PCA initial box on the held-out sets of the weights' training data,
+    and the median time of each on ``n_sets`` sets with the current torch thread count."""
+    from cuboidcli.solvers.neural import NeuralSolver, default_weights_path
+    from cuboidcli.solvers.numerical import NumericalSolver, pca_init
+
+    path = Path(weights) if weights is not None else default_weights_path()
+    neural = NeuralSolver(path)
+    meta = torch.load(path, map_location="cpu", weights_only=True).get("meta", {})
+    data = SyntheticConfig(**meta["data_config"]) if "data_config" in meta else SyntheticConfig()
+    val = validation_sets(n_sets, data)
+    solvers = {
+        "neural": neural,
+        "numerical": NumericalSolver(bounds=neural.bounds),
+        "pca_box": lambda p: pca_init(p, neural.bounds),
+    }
+    report = {"weights": str(path), "sets": n_sets, "threads": torch.get_num_threads()}
+    for name, solver in solvers.items():
+        report[name] = {k: evaluate_solver(solver, batch) for k, batch in val.items()}
+        report[name]["median_seconds"] = median_seconds(solver, val["noisy"].points, repeats)
+    return report
