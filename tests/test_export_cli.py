@@ -190,8 +190,14 @@ def test_onnx_options_reach_the_solver_export(app, tmp_path, monkeypatch):
 def test_export_onnx(app, tmp_path):
     pytest.importorskip("onnx")
     import onnx
+    import torch
 
-    res = runner.invoke(app, ["export", "--onnx", str(tmp_path / "solver.onnx")])
+    from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict
+
+    torch.manual_seed(0)
+    weights = tmp_path / "tiny.pt"
+    torch.save(checkpoint_dict(SolverNet(SolverNetConfig(width=16, layers=1, heads=2, ff=32))), weights)
+    res = runner.invoke(app, ["export", "--onnx", str(tmp_path / "solver.onnx"), "--weights", str(weights)])
     assert res.exit_code == 0, res.output
     model = onnx.load(str(tmp_path / "solver.onnx"))
     assert any(op.version == 17 for op in model.opset_import if op.domain in ("", "ai.onnx"))
