@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import typer
@@ -19,6 +20,71 @@ from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
 
 SAMPLE_DIR = Path(__file__).resolve().parents[1] / "data" / "sample"
 DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
+
+
+@dataclass
+class FitJob:
+    """Everything but the input files: how to read a frame, how to fit it, what to write."""
+
+    intrinsics: str | None
+    preset: str | None
+    depth_scale: float | None
+    config: object
+    solver: object
+    sampler: object
+    weights: Path | None
+    onnx: Path | None
+    glb: bool = False
+    ply: bool = False
+    overlay: bool = False
+    with_points: bool = False
+
+    def run(self, depth: Path, image: Path | None, progress=None):
+        """Fit one frame; returns (FitResult, FrameInput, FitInfo)."""
+        from cuboidcli.fitting.frame import load_frame, make_result
+        from cuboidcli.fitting.pipeline import fit_depth
+
+        frame = load_frame(depth, image, self.intrinsics, self.preset, self.depth_scale)
+        for note in frame.notes:
+            console.print(f"[yellow]warning:[/] {note}", highlight=False)
+        cuboids, info = fit_depth(
+            frame.depth_m,
+            frame.camera,
+            self.config,
+            solver=self.solver,
+            sampler=self.sampler,
+            progress=progress,
+        )
+        extra = {"weights": _str_or_none(self.weights), "onnx": _str_or_none(self.onnx)}
+        res = make_result(
+            frame.camera, cuboids, info, self.config, frame.meta, self.solver.name, self.sampler.name, extra
+        )
+        return res, frame, info
+
+    def write(self, res, frame, out_json: Path) -> list[Path]:
+        from cuboidcli.io.result import write_result
+
+        written = [write_result(out_json, res)]
+        if self.glb or self.ply or self.overlay:
+            from cuboidcli.export import write_outputs
+
+            stem = out_json.with_name(out_json.name.removesuffix(".json"))
+            paths = write_outputs(
+                res,
+                stem,
+                depth_m=frame.depth_m,
+                rgb=frame.rgb,
+                glb=self.glb,
+                ply=self.ply,
+                overlay=self.overlay,
+                with_points=self.with_points,
+            )
+            written += list(paths.values())
+        return written
+
+
+def _str_or_none(p) -> str | None:
+    return None if p is None else str(p)
 
 
 def _config(hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast):
@@ -61,51 +127,6 @@ def cuboid_table(result) -> Table:
             f"{c.inlier_gain:.1f}",
         )
     return table
-
-
-def _fit_one(depth, image, intrinsics, preset, depth_scale, config, weights, onnx, solver, sampler, progress):
-    from cuboidcli.fitting.frame import load_frame, make_result
-    from cuboidcli.fitting.pipeline import fit_depth
-
-    frame = load_frame(depth, image, intrinsics, preset, depth_scale)
-    for note in frame.notes:
-        console.print(f"[yellow]warning:[/] {note}", highlight=False)
-    cuboids, info = fit_depth(
-        frame.depth_m, frame.camera, config, solver=solver, sampler=sampler, progress=progress
-    )
-    res = make_result(
-        frame.camera,
-        cuboids,
-        info,
-        config,
-        frame.meta,
-        solver.name,
-        sampler.name,
-        {"weights": None if weights is None else str(weights), "onnx": None if onnx is None else str(onnx)},
-    )
-    return res, frame, info
-
-
-def _write(res, frame, out_json: Path, glb: bool, ply: bool, overlay: bool, with_points: bool) -> list[Path]:
-    from cuboidcli.io.result import write_result
-
-    written = [write_result(out_json, res)]
-    if glb or ply or overlay:
-        from cuboidcli.export import write_outputs
-
-        stem = out_json.with_name(out_json.name.removesuffix(".json"))
-        paths = write_outputs(
-            res,
-            stem,
-            depth_m=frame.depth_m,
-            rgb=frame.rgb,
-            glb=glb,
-            ply=ply,
-            overlay=overlay,
-            with_points=with_points,
-        )
-        written += list(paths.values())
-    return written
 
 
 def fit(
@@ -158,6 +179,8 @@ def fit(
     config = _config(hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast)
     if solver == "onnx" and onnx is None:
         fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
+    if image is not None and not image.exists():
+        fail(f"image file not found: {image}")
     with user_errors():
         from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
         from cuboidcli.fitting.sampling import make_sampler
@@ -169,28 +192,23 @@ def fit(
             fail(str(e))
         if config.device == "cpu":
             ensure_compiled()
+        job = FitJob(
+            intrinsics,
+            preset,
+            depth_scale,
+            config,
+            solver_obj,
+            sampler_obj,
+            weights,
+            onnx,
+            glb,
+            ply,
+            overlay,
+            with_points,
+        )
         if depth.is_dir():
-            _fit_folder(
-                depth,
-                intrinsics,
-                preset,
-                depth_scale,
-                output,
-                config,
-                weights,
-                onnx,
-                solver_obj,
-                sampler_obj,
-                glb,
-                ply,
-                overlay,
-                with_points,
-                quiet,
-            )
+            _fit_folder(job, depth, output, quiet)
             return
-        if image is not None and not image.exists():
-            fail(f"image file not found: {image}")
-        out_json = output or Path(f"{depth.stem}_cuboids.json")
         with Progress(
             SpinnerColumn(),
             TextColumn("{task.description}"),
@@ -204,20 +222,8 @@ def fit(
             def step(it, n, gain):
                 prog.update(task, description=f"fitting: step {it + 1}, {n} cuboids (last gain {gain:.0f})")
 
-            res, frame, info = _fit_one(
-                depth,
-                image,
-                intrinsics,
-                preset,
-                depth_scale,
-                config,
-                weights,
-                onnx,
-                solver_obj,
-                sampler_obj,
-                step,
-            )
-        written = _write(res, frame, out_json, glb, ply, overlay, with_points)
+            res, frame, info = job.run(depth, image, step)
+        written = job.write(res, frame, output or Path(f"{depth.stem}_cuboids.json"))
     if not quiet:
         out.print(cuboid_table(res))
         t = info.timing_s
@@ -229,31 +235,17 @@ def fit(
             out.print(f"wrote {p}")
 
 
-def _fit_folder(
-    folder,
-    intrinsics,
-    preset,
-    depth_scale,
-    output,
-    config,
-    weights,
-    onnx,
-    solver_obj,
-    sampler_obj,
-    glb,
-    ply,
-    overlay,
-    with_points,
-    quiet,
-):
+def _fit_folder(job: FitJob, folder: Path, output: Path | None, quiet: bool) -> None:
+    from cuboidcli.io.depth import InputError
+
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in DEPTH_SUFFIXES and p.is_file())
     if not files:
         fail(f"no depth maps (*.png, *.npy, *.npz, *.exr) in {folder}")
     out_dir = output or Path(f"{folder.name}_cuboids")
     if out_dir.suffix == ".json":
         fail("-o must be a folder when --depth is a folder")
-    if intrinsics is None and (folder / "cameras.json").is_file():
-        intrinsics = str(folder / "cameras.json")
+    if job.intrinsics is None and (folder / "cameras.json").is_file():
+        job.intrinsics = str(folder / "cameras.json")
     failures = 0
     with Progress(
         TextColumn("{task.description}"),
@@ -265,32 +257,15 @@ def _fit_folder(
     ) as prog:
         task = prog.add_task("fitting", total=len(files))
         for f in files:
-            from cuboidcli.io.depth import InputError
-
             try:
-                res, frame, info = _fit_one(
-                    f,
-                    None,
-                    intrinsics,
-                    preset,
-                    depth_scale,
-                    config,
-                    weights,
-                    onnx,
-                    solver_obj,
-                    sampler_obj,
-                    None,
-                )
-                _write(res, frame, out_dir / f"{f.stem}_cuboids.json", glb, ply, overlay, with_points)
-                prog.update(
-                    task,
-                    advance=1,
-                    description=f"{f.name}: {len(res.cuboids)} cuboids, {info.timing_s['total']:.2f} s",
-                )
+                res, frame, info = job.run(f, None)
+                job.write(res, frame, out_dir / f"{f.stem}_cuboids.json")
+                desc = f"{f.name}: {len(res.cuboids)} cuboids, {info.timing_s['total']:.2f} s"
             except InputError as e:
                 failures += 1
                 console.print(f"[red]skipped[/] {f.name}: {e}", highlight=False)
-                prog.update(task, advance=1)
+                desc = f"{f.name}: skipped"
+            prog.update(task, advance=1, description=desc)
     if not quiet:
         out.print(f"wrote {len(files) - failures} results to {out_dir}/")
     if failures:
@@ -302,7 +277,7 @@ def demo(
     seed: int = typer.Option(0, "--seed"),
     device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
 ) -> None:
-    """Fit the embedded sample scene (a synthetic room) and write JSON, GLB and overlay PNGs."""
+    """Fit the embedded sample scene (a synthetic room) and write JSON, GLB, PLY and overlay PNGs."""
     depth = SAMPLE_DIR / "sample_depth.png"
     if not depth.is_file():
         fail(f"the embedded sample is missing from {SAMPLE_DIR}; reinstall the package")
@@ -315,7 +290,7 @@ def demo(
         output=output / "sample_cuboids.json",
         hypotheses=4096,
         max_cuboids=8,
-        sampler="uniform",
+        sampler="sequential",
         solver="numerical",
         weights=None,
         onnx=None,
