@@ -184,10 +184,22 @@ def _objective_and_grad(pts, p, R, dR, grad):
     return dsum * asum
 
 
+@njit(cache=True, inline="always")
+def _adam_update(p, m, v, grad, lr, c1, c2, a_min, a_max):
+    """One Adam step (torch's defaults: betas 0.9, 0.999, eps 1e-8; c1, c2 the bias corrections), then the
+    half-sizes p[6:9] are projected onto [a_min, a_max]."""
+    for j in range(9):
+        m[j] = 0.9 * m[j] + 0.1 * grad[j]
+        v[j] = 0.999 * v[j] + 0.001 * grad[j] * grad[j]
+        p[j] -= lr * (m[j] / c1) / (math.sqrt(v[j] / c2) + 1e-8)
+    for j in range(6, 9):
+        p[j] = min(max(p[j], a_min), a_max)
+
+
 @njit(parallel=True, cache=True)
 def adam_solve(pts, init, a_min, a_max, lr, iters, out):
     """pts (H, C, 3) float64; init (H, 9) = (centre, axis-angle, half-sizes); best iterates go to out."""
-    b1, b2, eps = 0.9, 0.999, 1e-8
+    b1, b2 = 0.9, 0.999  # Adam betas, as in _adam_update
     for h in prange(pts.shape[0]):
         p = init[h].copy()
         m = np.zeros(9)
@@ -211,12 +223,7 @@ def adam_solve(pts, init, a_min, a_max, lr, iters, out):
             p2 *= b2
             c1 = 1.0 - p1
             c2 = 1.0 - p2
-            for j in range(9):
-                m[j] = b1 * m[j] + (1.0 - b1) * grad[j]
-                v[j] = b2 * v[j] + (1.0 - b2) * grad[j] * grad[j]
-                p[j] -= lr * (m[j] / c1) / (math.sqrt(v[j] / c2) + eps)
-            for j in range(6, 9):
-                p[j] = min(max(p[j], a_min), a_max)
+            _adam_update(p, m, v, grad, lr, c1, c2, a_min, a_max)
 
 
 @njit(cache=True)
@@ -330,7 +337,7 @@ def _oa_objective_and_grad(pts, p, R, dR, grad):
 def refine_adam(pts, init, a_min, a_max, lr, iters):
     """Adam on the mean d_oa^2 of points (N, 3) from init (9,) = (centre, axis-angle, half-sizes);
     returns the best iterate (9,)."""
-    b1, b2, eps = 0.9, 0.999, 1e-8
+    b1, b2 = 0.9, 0.999  # Adam betas, as in _adam_update
     p = init.copy()
     out = init.copy()
     m = np.zeros(9)
@@ -351,12 +358,7 @@ def refine_adam(pts, init, a_min, a_max, lr, iters):
         t = it + 1
         c1 = 1.0 - b1**t
         c2 = 1.0 - b2**t
-        for j in range(9):
-            m[j] = b1 * m[j] + (1.0 - b1) * grad[j]
-            v[j] = b2 * v[j] + (1.0 - b2) * grad[j] * grad[j]
-            p[j] -= lr * (m[j] / c1) / (math.sqrt(v[j] / c2) + eps)
-        for j in range(6, 9):
-            p[j] = min(max(p[j], a_min), a_max)
+        _adam_update(p, m, v, grad, lr, c1, c2, a_min, a_max)
     return out
 
 
