@@ -79,3 +79,12 @@ def test_select_best_exact_and_fast_path():
     )
     assert np.isfinite(g2.numpy()).sum() == 32
     assert gain2 == pytest.approx(ref[best2], rel=1e-5)
+
+
+def test_large_tau_c_of_the_training_schedule():
+    # tau_c up to 1 m^2 (the start of the training schedule) must not overflow
+    pts, c, a, R, state = scene(n=300, h=20, seed=6)
+    sp = ScoreParams(TAU, BETA, 1.0)
+    ref = gains_torch(pts, c, a, R, state, sp).numpy()
+    got = score_gains(pts.numpy(), c.numpy(), a.numpy(), R.numpy(), state.numpy(), TAU, BETA, 1.0)
+    np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-6)

@@ -135,7 +135,9 @@ def _side_d2(k, s, l0, l1, l2, a0, a1, a2, e0, e1, e2):
 
 def leaky_constants(tau: float, beta: float, tau_c: float) -> tuple[float, float]:
     """Slope m = -f_I'(tau_c) and offset b = 1 - f_I(tau_c) - m tau_c of the leaky occlusion penalty."""
-    fi_c = 1.0 / (1.0 + math.exp(-beta * (1.0 - tau_c / tau)))
+    x = beta * (1.0 - tau_c / tau)
+    # sigmoid(x) without overflow for the large tau_c of the training schedule (x << 0)
+    fi_c = 1.0 / (1.0 + math.exp(-x)) if x >= 0 else math.exp(x) / (1.0 + math.exp(x))
     slope = beta / tau * fi_c * (1.0 - fi_c)
     return slope, 1.0 - fi_c - slope * tau_c
 

@@ -1,0 +1,128 @@
+"""The sampling-weight network and its Sampler (cuboidcli.learn.sampler_net), with tiny random nets."""
+
+import pytest
+import torch
+
+from cuboidcli.camera import Camera
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.pipeline import fit_depth, prepare_points
+from cuboidcli.fitting.sampling import SamplingContext, make_sampler
+from cuboidcli.learn.sampler_net import (
+    WEIGHTS_NAME,
+    LearnedSampler,
+    SamplerNet,
+    SamplerNetConfig,
+    checkpoint_dict,
+    net_from_checkpoint,
+)
+from tests.conftest import simple_room
+
+TINY = SamplerNetConfig(width=16, blocks=1, upsample=2)
+
+
+@pytest.fixture(scope="module")
+def small_scene():
+    """simple_room rendered at 160x120, fitting grid every 4th pixel (30x40)."""
+    from cuboidcli.synth.render import render_boxes
+
+    camera = Camera.preset("nyu").scaled(0.25)
+    depth, _ = render_boxes(simple_room(), camera)
+    depth[:10, :20] = 0.0  # a hole: invalid fitting points
+    return depth, camera
+
+
+def _context(depth, camera, state=None) -> SamplingContext:
+    prep = prepare_points(depth, camera, 4)
+    n = prep.points.shape[0]
+    state = torch.zeros(n) if state is None else state
+    return SamplingContext(prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, state, 0)
+
+
+def _random_inputs(b=2, h=12, w=16, seed=0):
+    g = torch.Generator().manual_seed(seed)
+    depth = torch.rand(b, h, w, generator=g) * 4 + 0.5
+    valid = torch.rand(b, h, w, generator=g) > 0.3
+    state = torch.rand(b, h, w, generator=g) * 2 - 1
+    return torch.where(valid, depth, torch.zeros_like(depth)), state, valid
+
+
+@pytest.mark.parametrize("upsample", [1, 2, 4, 8])
+def test_output_shapes(upsample):
+    torch.manual_seed(0)
+    net = SamplerNet(SamplerNetConfig(width=16, blocks=2, upsample=upsample))
+    depth, state, valid = _random_inputs(h=15, w=20)  # odd sizes survive the stride-2 layers
+    out = net(depth, state, valid)
+    assert out.log_p.shape == out.p.shape == (2, 4, 15, 20)
+    assert out.log_q.shape == out.q.shape == (2, 4)
+
+
+def test_maps_sum_to_one_over_valid_points_and_zero_elsewhere():
+    torch.manual_seed(0)
+    net = SamplerNet(TINY)
+    depth, state, valid = _random_inputs()
+    out = net(depth, state, valid)
+    sums = (out.p * valid[:, None]).flatten(2).sum(-1)
+    torch.testing.assert_close(sums, torch.ones(2, 4))
+    invalid = ~valid[:, None].expand_as(out.p)
+    assert torch.all(out.p[invalid] == 0) and torch.all(torch.isinf(out.log_p[invalid]))
+    torch.testing.assert_close(out.q.sum(1), torch.ones(2))
+    assert torch.all(torch.isfinite(out.log_p[~invalid]))
+
+
+def test_maps_depend_on_the_state():
+    torch.manual_seed(0)
+    net = SamplerNet(TINY)
+    depth, state, valid = _random_inputs(b=1)
+    a = net(depth, state, valid).p
+    b = net(depth, torch.zeros_like(state), valid).p
+    assert not torch.allclose(a, b)
+
+
+def test_sampler_distributions_cover_the_fitting_points(small_scene):
+    depth, camera = small_scene
+    torch.manual_seed(0)
+    sampler = LearnedSampler(SamplerNet(TINY))
+    ctx = _context(depth, camera)
+    p, q = sampler.distributions(ctx)
+    n = ctx.points.shape[0]
+    assert p.shape == (4, n) and q.shape == (4,) and p.dtype == torch.float64
+    torch.testing.assert_close(p.sum(1), torch.ones(4, dtype=torch.float64))
+    torch.testing.assert_close(q.sum(), torch.tensor(1.0, dtype=torch.float64))
+    assert torch.all(p > 0)  # every fitting point is a valid cell and can be drawn
+
+
+def test_checkpoint_round_trip_and_load(tmp_path, small_scene):
+    torch.manual_seed(0)
+    net = SamplerNet(TINY)
+    torch.save(checkpoint_dict(net, {"note": "test"}), tmp_path / WEIGHTS_NAME)
+    loaded = LearnedSampler.load(tmp_path)
+    assert loaded.name == "learned" and loaded.net.config == TINY
+    ctx = _context(*small_scene)
+    torch.testing.assert_close(loaded.distributions(ctx)[0], LearnedSampler(net).distributions(ctx)[0])
+    # a .pt path works as well, and make_sampler("learned") goes through the same loader
+    assert LearnedSampler.load(tmp_path / WEIGHTS_NAME).net.config == TINY
+    assert make_sampler("learned", tmp_path).name == "learned"
+    ckpt = torch.load(tmp_path / WEIGHTS_NAME, weights_only=True)
+    assert set(ckpt) == {"config", "state_dict", "meta"} and ckpt["meta"] == {"note": "test"}
+    assert not net_from_checkpoint(ckpt).training
+
+
+def test_missing_weights_raise_a_clear_error(tmp_path):
+    with pytest.raises(FileNotFoundError, match="sampler weights .* not found; train them"):
+        LearnedSampler.load(tmp_path / "nowhere")
+    with pytest.raises(ValueError, match="not a sampler checkpoint"):
+        net_from_checkpoint({"state_dict": {}})
+    with pytest.raises(ValueError, match="power of two"):
+        SamplerNetConfig(upsample=3)
+
+
+def test_learned_sampler_plugs_into_fit_depth(tmp_path, small_scene):
+    depth, camera = small_scene
+    torch.manual_seed(0)
+    torch.save(checkpoint_dict(SamplerNet(TINY)), tmp_path / WEIGHTS_NAME)
+    cfg = FitConfig(sampler="learned", hypotheses=128, grid_step=4, max_cuboids=3, refine=False, seed=1)
+    cuboids, info = fit_depth(depth, camera, cfg, weights_dir=tmp_path)
+    assert 1 <= len(cuboids) <= 3
+    assert all(g > info.theta for g in info.gains)
+    again, _ = fit_depth(depth, camera, cfg, weights_dir=tmp_path)
+    assert [c.center.tolist() for c in again] == [c.center.tolist() for c in cuboids]
