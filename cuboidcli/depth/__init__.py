@@ -1,0 +1,21 @@
+"""Depth from RGB (issue 7): depth estimators f_v behind one interface, the built-in network, its training.
+
+Public entry points: :func:`depth_for_fit` (what ``cuboids fit image.png`` without ``--depth`` calls),
+:func:`make_depth_estimator`, :class:`BuiltinDepthEstimator`, :class:`OnnxDepthEstimator`.
+"""
+
+from cuboidcli.depth.estimator import (
+    BuiltinDepthEstimator,
+    DepthEstimator,
+    OnnxDepthEstimator,
+    depth_for_fit,
+    make_depth_estimator,
+)
+
+__all__ = [
+    "BuiltinDepthEstimator",
+    "DepthEstimator",
+    "OnnxDepthEstimator",
+    "depth_for_fit",
+    "make_depth_estimator",
+]

@@ -1,0 +1,83 @@
+"""Depth errors of an estimator on a dataset folder (the layout of :func:`cuboidcli.io.dataset.list_frames`).
+
+Per frame: AbsRel, RMSE (m) and delta < 1.25 over the valid ground-truth pixels (raw depth: holes excluded,
+no crop, no depth cap), then their means over frames. In flat folders that hold both ``<name>_depth_raw``
+and ``<name>_depth_filled``, the raw map is the ground truth by default: in-painted depth is itself an
+estimate. ``python -m cuboidcli.depth.evaluate`` is a stop-gap entry point until the CLI has one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+from dataclasses import replace
+from pathlib import Path
+
+from cuboidcli.depth.metrics import depth_errors, mean_errors
+from cuboidcli.io.atomic import atomic_write_json
+from cuboidcli.io.dataset import DEPTH_SUFFIXES, Frame, list_frames
+
+
+def evaluate_frames(estimator, frames: list[Frame]) -> dict:
+    """Errors of ``estimator`` (a DepthEstimator) on frames with RGB images:
+    ``{"frames": {name: {"abs_rel", "rmse_m", "delta1", "valid_px"}}, "mean": {...}}``."""
+    per = {}
+    for f in frames:
+        rgb = f.rgb()
+        if rgb is None:
+            raise ValueError(f"frame {f.name} has no RGB image")
+        per[f.name] = depth_errors(estimator.predict(rgb, f.camera), f.depth_m())
+    return {"frames": per, "mean": mean_errors(list(per.values()))}
+
+
+def with_raw_depth(frames: list[Frame]) -> list[Frame]:
+    """Swap an in-painted ``<name>_depth_filled`` ground truth for its ``<name>_depth_raw`` sibling."""
+    out = []
+    for f in frames:
+        if f.depth_path.stem.endswith("_depth_filled"):
+            for suffix in DEPTH_SUFFIXES:
+                raw = f.depth_path.with_name(f"{f.name}_depth_raw{suffix}")
+                if raw.is_file():
+                    f = replace(f, depth_path=raw)
+                    break
+        out.append(f)
+    return out
+
+
+def evaluate_dataset(estimator, root: str | Path, split: str | None = None, raw: bool = True) -> dict:
+    """:func:`evaluate_frames` on the frames of ``root`` (optionally one split) that have RGB images."""
+    frames = [f for f in list_frames(root, split) if f.rgb_path is not None]
+    if raw:
+        frames = with_raw_depth(frames)
+    if not frames:
+        raise ValueError(f"no frames with RGB images in {root}")
+    report = evaluate_frames(estimator, frames)
+    report["ground_truth"] = {f.name: f.depth_path.name for f in frames}
+    return report
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m cuboidcli.depth.evaluate DATA [--model PATH] [--split NAME] [--out FILE.json]``."""
+    from cuboidcli.depth.estimator import default_weights_path, make_depth_estimator
+
+    p = argparse.ArgumentParser(description="Depth errors of a depth estimator on an RGB-D dataset folder.")
+    p.add_argument("data")
+    p.add_argument("--model", default=None, help="built-in .pt checkpoint or metric .onnx (default: shipped)")
+    p.add_argument("--split", default=None)
+    p.add_argument("--filled", action="store_true", help="use in-painted ground truth where both exist")
+    p.add_argument("--out", default=None, help="write the report as JSON")
+    a = p.parse_args(argv)
+    model = Path(a.model) if a.model else default_weights_path()
+    report = evaluate_dataset(make_depth_estimator(model), a.data, a.split, raw=not a.filled)
+    report["model"] = {"path": str(model), "sha256": hashlib.sha256(model.read_bytes()).hexdigest()}
+    report["data"] = str(a.data)
+    for name, e in report["frames"].items():
+        print(f"{name:24s} AbsRel {e['abs_rel']:.3f}  RMSE {e['rmse_m']:.3f} m  d<1.25 {e['delta1']:.3f}")
+    m = report["mean"]
+    print(f"{'mean':24s} AbsRel {m['abs_rel']:.3f}  RMSE {m['rmse_m']:.3f} m  d<1.25 {m['delta1']:.3f}")
+    if a.out:
+        atomic_write_json(a.out, report)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,338 @@
+"""Training of the built-in depth network on an RGB-D dataset folder (the layout of ``cuboids synth``).
+
+Loss over the valid ground-truth pixels (depth > 0) of each image: the scale-invariant log error of Eigen
+et al. (2014), sqrt(mean g^2 - lambda (mean g)^2) with g = log d - log d*, averaged over the batch, plus
+``l1_weight`` times the mean absolute depth error in metres (the scale-invariant term alone would leave
+the metric scale to the (1 - lambda) share of its penalty).
+
+Targets live in the net's canonical camera: the images are resized to the net's input size and each
+frame's depth is multiplied by f_canonical / f_frame (f the geometric mean of the focal lengths at the
+input size; 1 for a dataset written with one camera). Augmentation, drawn from a seeded generator:
+a random crop of ``min_crop``..1 of the image resized back to the input size (it magnifies by 1 / s, so
+the canonical depth of every pixel becomes s times its depth), a horizontal flip (the focal length, the
+only intrinsic the target depends on, is unchanged; the principal point mirrors, which the net never
+sees), and colour jitter (brightness, contrast, saturation).
+
+Files in ``out_dir``: ``config.json``, ``log.jsonl`` (one record per logged step and per validation),
+``last.pt`` (training state: weights, optimizer, generator state, epoch; resume with it) and ``best.pt``
+(weights-only checkpoint with the lowest validation AbsRel). The library prints nothing; progress goes
+to ``on_event``. ``python -m cuboidcli.depth.train`` is a stop-gap entry point until the CLI has one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F  # noqa: N812 - the usual alias
+
+from cuboidcli.depth.estimator import BuiltinDepthEstimator, resize
+from cuboidcli.depth.evaluate import evaluate_frames
+from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict, parameter_count
+from cuboidcli.io.atomic import atomic_write, atomic_write_json
+from cuboidcli.io.dataset import Frame, list_frames
+
+
+@dataclass(frozen=True)
+class DepthTrainConfig:
+    """Schedule, loss and augmentation of a training run."""
+
+    epochs: int = 60
+    """Passes over the training split."""
+    batch: int = 8
+    lr: float = 1e-3
+    """Peak AdamW learning rate."""
+    weight_decay: float = 1e-4
+    warmup: int = 100
+    """Linear warm-up steps."""
+    final_lr_ratio: float = 0.02
+    """The cosine decay ends at lr * final_lr_ratio."""
+    grad_clip: float = 5.0
+    """Max global gradient norm."""
+    silog_lambda: float = 0.85
+    """lambda of the scale-invariant log loss (1 = fully scale invariant)."""
+    l1_weight: float = 0.2
+    """Weight of the mean absolute depth error, 1/m."""
+    min_crop: float = 0.8
+    """Smallest random crop, as a fraction of the image side (1 = no crop augmentation)."""
+    flip: bool = True
+    """Random horizontal flips."""
+    jitter: float = 0.3
+    """Colour jitter strength: factors drawn from [1 - jitter, 1 + jitter]."""
+    seed: int = 0
+    """Seeds the initial weights, the order of the frames and the augmentation."""
+    threads: int = 1
+    """torch CPU threads (the machine's cores are shared)."""
+    log_every: int = 10
+    max_minutes: float | None = None
+    """Budget of training wall time (summed over resumed sessions): the cosine decay then follows whichever
+    budget runs out faster, epochs or time, and the run ends with a validation when either is spent."""
+
+
+def focal_at_input(camera, cfg: DepthNetConfig) -> float:
+    """Geometric mean focal length (px) of ``camera`` after resizing its image to the net's input size."""
+    return math.sqrt(
+        camera.fx * cfg.input_width / camera.width * camera.fy * cfg.input_height / camera.height
+    )
+
+
+def load_split(frames: list[Frame], cfg: DepthNetConfig) -> tuple[torch.Tensor, torch.Tensor]:
+    """Images and canonical-camera depth targets at the net's input size: uint8 (N, 3, h, w) and float32
+    (N, 1, h, w) metres (0 = hole; nearest-neighbour resizing keeps holes holes)."""
+    import cv2
+
+    rgbs, depths = [], []
+    for f in frames:
+        rgb = f.rgb()
+        if rgb is None:
+            raise ValueError(f"frame {f.name} has no RGB image; the depth net trains on RGB-D frames")
+        depth = f.depth_m()
+        if depth.shape != (cfg.input_height, cfg.input_width):
+            depth = cv2.resize(depth, (cfg.input_width, cfg.input_height), interpolation=cv2.INTER_NEAREST)
+        depth = depth * (cfg.canonical_focal_px / focal_at_input(f.camera, cfg))
+        rgbs.append(resize(rgb, cfg.input_height, cfg.input_width))
+        depths.append(depth.astype(np.float32))
+    rgb_t = torch.from_numpy(np.stack(rgbs)).permute(0, 3, 1, 2).contiguous()
+    return rgb_t, torch.from_numpy(np.stack(depths))[:, None]
+
+
+def augment(
+    rgb: torch.Tensor, depth: torch.Tensor, cfg: DepthTrainConfig, gen: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """rgb (B, 3, h, w) in [0, 1] and depth (B, 1, h, w) m -> augmented copies (see the module docstring)."""
+    b, _, h, w = rgb.shape
+    out_rgb, out_depth = [], []
+    for i in range(b):
+        x, d = rgb[i : i + 1], depth[i : i + 1]
+        s = cfg.min_crop + (1.0 - cfg.min_crop) * float(torch.rand((), generator=gen))
+        if s < 1.0:
+            ch, cw = max(8, round(s * h)), max(8, round(s * w))
+            top = int(torch.randint(0, h - ch + 1, (), generator=gen))
+            left = int(torch.randint(0, w - cw + 1, (), generator=gen))
+            x = F.interpolate(x[..., top : top + ch, left : left + cw], size=(h, w), mode="bilinear")
+            d = F.interpolate(d[..., top : top + ch, left : left + cw], size=(h, w), mode="nearest")
+            d = d * (ch / h)  # magnified by h / ch: canonical depth shrinks by the same factor
+        if cfg.flip and float(torch.rand((), generator=gen)) < 0.5:
+            x, d = x.flip(-1), d.flip(-1)
+        out_rgb.append(x)
+        out_depth.append(d)
+    x, d = torch.cat(out_rgb), torch.cat(out_depth)
+    if cfg.jitter > 0:
+        j = cfg.jitter
+        factors = 1.0 + j * (2.0 * torch.rand(3, b, 1, 1, 1, generator=gen) - 1.0)
+        x = x * factors[0]  # brightness
+        mean = x.mean((1, 2, 3), keepdim=True)
+        x = (x - mean) * factors[1] + mean  # contrast
+        grey = x.mean(1, keepdim=True)
+        x = (x - grey) * factors[2] + grey  # saturation
+        x = x.clamp(0.0, 1.0)
+    return x, d
+
+
+def depth_loss(pred: torch.Tensor, target: torch.Tensor, cfg: DepthTrainConfig) -> torch.Tensor:
+    """Scale-invariant log loss + l1_weight * L1 over valid pixels: pred, target (B, 1, h, w) m -> scalar."""
+    valid = target > 0
+    safe_target = torch.where(valid, target, torch.ones_like(target))
+    g = torch.where(valid, pred.log() - safe_target.log(), torch.zeros_like(pred))
+    n = valid.sum((1, 2, 3)).clamp_min(1)
+    mean_g = g.sum((1, 2, 3)) / n
+    mean_g2 = (g * g).sum((1, 2, 3)) / n
+    silog = (mean_g2 - cfg.silog_lambda * mean_g**2).clamp_min(1e-8).sqrt()
+    l1 = torch.where(valid, (pred - target).abs(), torch.zeros_like(pred)).sum() / valid.sum().clamp_min(1)
+    return silog.mean() + cfg.l1_weight * l1
+
+
+def lr_at(step: int, total_steps: int, cfg: DepthTrainConfig, time_fraction: float = 0.0) -> float:
+    """Linear warm-up, then cosine down to final_lr_ratio * lr (following time when it runs ahead)."""
+    if step < cfg.warmup:
+        return cfg.lr * (step + 1) / cfg.warmup
+    progress = min(1.0, max((step - cfg.warmup) / max(1, total_steps - cfg.warmup), time_fraction))
+    return cfg.lr * (
+        cfg.final_lr_ratio + (1.0 - cfg.final_lr_ratio) * 0.5 * (1.0 + math.cos(math.pi * progress))
+    )
+
+
+def _save(blob: dict, path: Path) -> None:
+    atomic_write(path, lambda tmp: torch.save(blob, tmp))
+
+
+def train_depth(
+    data: str | Path,
+    out_dir: str | Path,
+    cfg: DepthTrainConfig | None = None,
+    net_cfg: DepthNetConfig | None = None,
+    resume: str | Path | None = None,
+    on_event: Callable[[dict], None] | None = None,
+) -> dict:
+    """Train (or resume) on ``data``'s train split, validating on its val split after every epoch.
+
+    The net's canonical focal length is that of the first training frame at the input size. When
+    resuming, schedule and net come from the checkpoint; ``threads`` and ``max_minutes`` from ``cfg``.
+    Returns the final record (epoch, best validation AbsRel, paths).
+    """
+    cfg = cfg or DepthTrainConfig()
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    emit = on_event or (lambda record: None)
+    state = None
+    if resume is not None:
+        state = torch.load(resume, map_location="cpu", weights_only=True)
+        if not isinstance(state, dict) or state.get("kind") != "depth-train-state":
+            raise ValueError(f"{resume} is not a depth training checkpoint (use last.pt)")
+        keep = {k: getattr(cfg, k) for k in ("threads", "max_minutes", "log_every")}
+        cfg = replace(DepthTrainConfig(**state["train_config"]), **keep)
+        net_cfg = DepthNetConfig.from_dict(state["config"])
+    torch.set_num_threads(cfg.threads)
+    train_frames, val_frames = list_frames(data, "train"), list_frames(data, "val")
+    net_cfg = net_cfg or DepthNetConfig()
+    if state is None:
+        net_cfg = replace(net_cfg, canonical_focal_px=focal_at_input(train_frames[0].camera, net_cfg))
+    rgb_all, depth_all = load_split(train_frames, net_cfg)
+
+    torch.manual_seed(cfg.seed)
+    net = DepthNet(net_cfg)
+    opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    gen = torch.Generator().manual_seed(cfg.seed)
+    epoch, step, best, spent_s = 0, 0, math.inf, 0.0
+    if state is not None:
+        net.load_state_dict(state["state_dict"])
+        opt.load_state_dict(state["optimizer"])
+        gen.set_state(state["generator"])
+        epoch, step = int(state["epoch"]), int(state["step"])
+        best, spent_s = float(state["best_abs_rel"]), float(state["elapsed_s"])
+    steps_per_epoch = len(train_frames) // cfg.batch
+    total_steps = steps_per_epoch * cfg.epochs
+    resolved = {"data": str(data), "train": asdict(cfg), "net": net_cfg.to_dict()}
+    resolved["resumed_from"] = None if resume is None else str(resume)
+    resolved["frames"] = {"train": len(train_frames), "val": len(val_frames)}
+    atomic_write_json(out_dir / "config.json", resolved)
+    n_params = parameter_count(net)
+    log_path = out_dir / "log.jsonl"
+
+    def log(record: dict) -> None:
+        with log_path.open("a", encoding="utf-8") as f:
+            f.write(json.dumps(record) + "\n")
+        emit(record)
+
+    t0 = time.perf_counter()
+
+    def elapsed() -> float:
+        return spent_s + time.perf_counter() - t0
+
+    def time_fraction() -> float:
+        return 0.0 if cfg.max_minutes is None else elapsed() / (60.0 * cfg.max_minutes)
+
+    emit({"event": "start", "epoch": epoch, "epochs": cfg.epochs, "parameters": n_params})
+    timed_out = False
+    while epoch < cfg.epochs and not timed_out:
+        net.train()
+        order = torch.randperm(len(train_frames), generator=gen)
+        window_loss, window_n = 0.0, 0
+        for k in range(steps_per_epoch):
+            idx = order[k * cfg.batch : (k + 1) * cfg.batch]
+            x, target = augment(rgb_all[idx].float() / 255.0, depth_all[idx], cfg, gen)
+            for group in opt.param_groups:
+                group["lr"] = lr = lr_at(step, total_steps, cfg, time_fraction())
+            loss = depth_loss(net(net.normalise(x)), target, cfg)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), cfg.grad_clip)
+            opt.step()
+            step += 1
+            window_loss, window_n = window_loss + loss.item(), window_n + 1
+            if step % cfg.log_every == 0:
+                log(
+                    {
+                        "event": "train",
+                        "epoch": epoch,
+                        "step": step,
+                        "loss": window_loss / window_n,
+                        "lr": lr,
+                        "grad_norm": float(grad_norm),
+                        "elapsed_s": elapsed(),
+                    }
+                )
+                window_loss, window_n = 0.0, 0
+            if time_fraction() >= 1.0:
+                timed_out = True
+                break
+        epoch += 1
+        val = evaluate_frames(BuiltinDepthEstimator(net=net), val_frames)["mean"]
+        improved = val["abs_rel"] < best
+        if improved:
+            best = val["abs_rel"]
+            meta = {
+                "epoch": epoch,
+                "step": step,
+                "validation": val,
+                "parameters": n_params,
+                "train_config": asdict(cfg),
+                "data": str(data),
+                "elapsed_s": elapsed(),
+            }
+            _save(checkpoint_dict(net, meta), out_dir / "best.pt")
+        log({"event": "val", "epoch": epoch, "step": step, "best": improved, "elapsed_s": elapsed(), **val})
+        blob = {
+            "kind": "depth-train-state",
+            "config": net_cfg.to_dict(),
+            "state_dict": net.state_dict(),
+            "optimizer": opt.state_dict(),
+            "generator": gen.get_state(),
+            "epoch": epoch,
+            "step": step,
+            "best_abs_rel": best,
+            "elapsed_s": elapsed(),
+            "train_config": asdict(cfg),
+        }
+        _save(blob, out_dir / "last.pt")
+    final = {
+        "event": "done",
+        "epoch": epoch,
+        "step": step,
+        "best_abs_rel": best,
+        "timed_out": timed_out,
+        "elapsed_s": elapsed(),
+        "best": str(out_dir / "best.pt"),
+        "last": str(out_dir / "last.pt"),
+    }
+    log(final)
+    return final
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m cuboidcli.depth.train DATA --out DIR [...]``: a stop-gap until ``cuboids train depth``."""
+    p = argparse.ArgumentParser(description="Train the built-in depth network on an RGB-D dataset folder.")
+    p.add_argument("data", help="dataset folder (layout of 'cuboids synth', with splits.json)")
+    p.add_argument("--out", required=True, help="folder for logs and checkpoints")
+    p.add_argument("--resume", default=None, help="last.pt of an interrupted run")
+    defaults = DepthTrainConfig()
+    for name in ("epochs", "batch", "seed", "threads"):
+        p.add_argument(f"--{name}", type=int, default=getattr(defaults, name))
+    for name in ("lr", "l1_weight", "min_crop", "jitter"):
+        p.add_argument(f"--{name.replace('_', '-')}", type=float, default=getattr(defaults, name))
+    p.add_argument("--max-minutes", type=float, default=None)
+    a = p.parse_args(argv)
+    cfg = DepthTrainConfig(
+        epochs=a.epochs,
+        batch=a.batch,
+        seed=a.seed,
+        threads=a.threads,
+        lr=a.lr,
+        l1_weight=a.l1_weight,
+        min_crop=a.min_crop,
+        jitter=a.jitter,
+        max_minutes=a.max_minutes,
+    )
+    # the final record reaches on_event as well
+    train_depth(a.data, a.out, cfg, resume=a.resume, on_event=lambda r: print(json.dumps(r), flush=True))
+
+
+if __name__ == "__main__":
+    main()
