@@ -143,3 +143,41 @@ def test_depth_formats_npy_npz_exr(tmp_path, room_depth):
     np.save(tmp_path / "nan.npy", nan)
     got = read_depth(tmp_path / "nan.npy")
     assert (got[:20] == 0).all() and np.isfinite(got).all()
+
+
+def test_rgb_only_uses_the_depth_estimator(tmp_path):
+    """Without --depth the built-in depth network (a tiny random one here) provides the depth, and says so."""
+    import torch
+
+    from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict
+
+    torch.manual_seed(0)
+    weights = tmp_path / "depth.pt"
+    torch.save(checkpoint_dict(DepthNet(DepthNetConfig(channels=(4, 8, 8, 8, 8)))), weights)
+    rgb = (np.random.default_rng(0).uniform(0, 255, (120, 160, 3))).astype(np.uint8)
+    img = tmp_path / "rgb.png"
+    cv2.imwrite(str(img), rgb)
+    out = tmp_path / "rgb.json"
+    r = run(
+        "fit",
+        img,
+        "-K",
+        "130,130,80,60",
+        "--depth-model",
+        weights,
+        "-o",
+        out,
+        "--hypotheses",
+        "64",
+        "--theta",
+        "-1e9",
+        "--max-cuboids",
+        "1",
+    )
+    assert r.exit_code == 0, r.output
+    assert "depth estimated from RGB" in r.output
+    d = json.loads(out.read_text())
+    assert d["input"]["depth"] is None and "built-in network" in d["input"]["depth_source"]
+    assert len(d["cuboids"]) == 1
+    r = run("fit", img, "--depth-model", tmp_path / "missing.pt", "-o", out)
+    assert r.exit_code == 2 and "not found" in r.output

@@ -38,15 +38,20 @@ class FitJob:
     ply: bool = False
     overlay: bool = False
     with_points: bool = False
+    depth_model: object = None
 
-    def run(self, depth: Path, image: Path | None, progress=None):
+    def run(self, depth: Path | None, image: Path | None, progress=None):
         """Fit one frame; returns (FitResult, FrameInput, FitInfo)."""
         from cuboidcli.fitting.frame import load_frame, make_result
         from cuboidcli.fitting.pipeline import fit_depth
 
-        frame = load_frame(depth, image, self.intrinsics, self.preset, self.depth_scale)
+        frame = load_frame(
+            depth, image, self.intrinsics, self.preset, self.depth_scale, depth_model=self.depth_model
+        )
         for note in frame.notes:
             console.print(f"[yellow]warning:[/] {note}", highlight=False)
+        if frame.meta["depth"] is None:
+            console.print(f"[cyan]note:[/] {frame.meta['depth_source']}", highlight=False)
         cuboids, info = fit_depth(
             frame.depth_m,
             frame.camera,
@@ -170,12 +175,28 @@ def fit(
     overlay: bool = typer.Option(False, "--overlay", help="Also write overlay, label and panel PNGs."),
     with_points: bool = typer.Option(False, "--with-points", help="Include the point cloud in the GLB."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Print only errors."),
+    depth_model: str = typer.Option(
+        None,
+        "--depth-model",
+        help="Without --depth: a user's monocular depth "
+        "model (.onnx) or a built-in checkpoint (.pt) [default: models/depth_v1.pt].",
+    ),
+    depth_model_kind: str = typer.Option(
+        "metric", "--depth-model-kind", help="metric | relative | relative-inverse (ONNX models)."
+    ),
+    relative_scale: float = typer.Option(None, "--relative-scale", help="Scale for a relative depth model."),
+    relative_shift: float = typer.Option(None, "--relative-shift", help="Shift for a relative depth model."),
+    partial_depth: Path = typer.Option(
+        None, "--partial-depth", help="Sparse/partial depth map to align a relative model to."
+    ),
 ) -> None:
-    """Fit cuboids to a depth map (or every depth map in a folder) and write "cuboids/1" JSON."""
-    if depth is None:
-        if image is None:
-            fail("give a depth map with --depth D.png (see cuboids fit --help)")
-        fail("RGB-only input needs a depth network, which this version does not ship yet; pass --depth D.png")
+    """Fit cuboids to a depth map (or every depth map in a folder) and write "cuboids/1" JSON.
+
+    With only an RGB image, depth comes from a monocular depth network (the built-in one by default)."""
+    if depth is None and image is None:
+        fail("give a depth map with --depth D.png or an RGB image (see cuboids fit --help)")
+    if depth_model_kind not in ("metric", "relative", "relative-inverse"):
+        fail(f"--depth-model-kind {depth_model_kind!r}: choose metric, relative or relative-inverse")
     config = _config(hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast)
     if solver == "onnx" and onnx is None:
         fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
@@ -206,7 +227,18 @@ def fit(
             overlay,
             with_points,
         )
-        if depth.is_dir():
+        if depth is None:
+            from cuboidcli.fitting.frame import DepthModelOptions
+
+            job.depth_model = DepthModelOptions(
+                depth_model,
+                depth_model_kind,
+                relative_scale,
+                relative_shift,
+                None if partial_depth is None else str(partial_depth),
+                config.device,
+            )
+        elif depth.is_dir():
             _fit_folder(job, depth, output, quiet)
             return
         with Progress(
@@ -223,7 +255,8 @@ def fit(
                 prog.update(task, description=f"fitting: step {it + 1}, {n} cuboids (last gain {gain:.0f})")
 
             res, frame, info = job.run(depth, image, step)
-        written = job.write(res, frame, output or Path(f"{depth.stem}_cuboids.json"))
+        stem = (depth or image).stem
+        written = job.write(res, frame, output or Path(f"{stem}_cuboids.json"))
     if not quiet:
         out.print(cuboid_table(res))
         t = info.timing_s

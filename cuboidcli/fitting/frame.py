@@ -38,30 +38,57 @@ def resolve_depth_scale(depth_scale: float | None, intr: Intrinsics, preset: str
     return 0.001
 
 
+@dataclass(frozen=True)
+class DepthModelOptions:
+    """How to get depth from an RGB image when no depth map is given (issue 7's estimators)."""
+
+    model: str | None = None
+    """None = the built-in network (models/depth_v1.pt); a .pt checkpoint or a user's .onnx model."""
+    kind: str = "metric"
+    """metric | relative | relative-inverse (for ONNX models)."""
+    scale: float | None = None
+    shift: float | None = None
+    partial_depth: str | None = None
+    """Sparse/partial depth map (same size as the image) to align a relative model to."""
+    device: str = "cpu"
+
+
 def load_frame(
-    depth_path: str | Path,
+    depth_path: str | Path | None,
     image_path: str | Path | None = None,
     intrinsics: str | None = None,
     preset: str | None = None,
     depth_scale: float | None = None,
     frame_name: str | None = None,
+    depth_model: DepthModelOptions | None = None,
 ) -> FrameInput:
-    """Read and check one frame. Raises InputError with a one-line message on unusable input."""
+    """Read and check one frame. Raises InputError with a one-line message on unusable input.
+
+    Without ``depth_path`` the depth is estimated from the RGB image (``depth_model`` options).
+    """
     if preset is not None and preset not in PRESETS:
         raise InputError(f"unknown --preset {preset!r}; choose one of: {', '.join(PRESETS)}")
+    if depth_path is None and image_path is None:
+        raise InputError("give a depth map (--depth D.png) or an RGB image")
     notes: list[str] = []
     if intrinsics is None and preset is None:
         notes.append("no --intrinsics or --preset given: using the NYU Depth v2 intrinsics")
-    intr = parse_intrinsics(intrinsics, preset, frame=frame_name or Path(depth_path).stem)
+    name = frame_name or Path(depth_path if depth_path is not None else image_path).stem
+    intr = parse_intrinsics(intrinsics, preset, frame=name)
     scale = resolve_depth_scale(depth_scale, intr, preset)
-    depth = read_depth(depth_path, scale)
     rgb = read_rgb(image_path) if image_path is not None else None
+    source = None
+    if depth_path is not None:
+        depth = read_depth(depth_path, scale)
+    else:
+        depth, source = _estimate_depth(rgb, intr, scale, depth_model or DepthModelOptions())
     notes += check_inputs(depth, intr, None if rgb is None else rgb.shape)
     h, w = depth.shape
     camera = intr.camera(w, h)
     meta = {
-        "depth": str(depth_path),
+        "depth": None if depth_path is None else str(depth_path),
         "image": None if image_path is None else str(image_path),
+        "depth_source": source or "depth map",
         "depth_scale": scale,
         "width": w,
         "height": h,
@@ -69,6 +96,19 @@ def load_frame(
         "intrinsics_source": intr.source,
     }
     return FrameInput(depth, camera, rgb, scale, notes, meta)
+
+
+def _estimate_depth(rgb: np.ndarray, intr: Intrinsics, depth_scale: float, opts: DepthModelOptions):
+    from cuboidcli.depth import depth_for_fit
+
+    h, w = rgb.shape[:2]
+    partial = read_depth(opts.partial_depth, depth_scale) if opts.partial_depth else None
+    try:
+        return depth_for_fit(
+            rgb, intr.camera(w, h), opts.model, opts.kind, opts.scale, opts.shift, partial, opts.device
+        )
+    except (ValueError, FileNotFoundError) as e:
+        raise InputError(str(e)) from e
 
 
 def make_result(
