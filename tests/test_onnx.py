@@ -65,6 +65,9 @@ def test_onnx_solver_matches_neural_solver(weights, exported):
     for a, b in zip(neural(sets), ort_solver(sets), strict=True):
         assert a.dtype == b.dtype == torch.float64 and a.shape == b.shape
         assert float((a - b).abs().max()) <= 1e-4
+    pooled = OnnxSolver(exported, threads=2)(sets)  # chunks in two threads give the same numbers
+    for a, b in zip(ort_solver(sets), pooled, strict=True):
+        assert torch.equal(a, b)
     with pytest.raises(ValueError, match="trained for half-sizes"):
         OnnxSolver(exported, bounds=SizeBounds(2.0, 30.0))
 

@@ -110,24 +110,39 @@ def test_neural_solver_protocol(tmp_path):
         NeuralSolver(tmp_path / "missing.pt")
 
 
+def test_neural_solver_thread_pool_matches_serial():
+    net = tiny_net(2)
+    x = some_sets(1500)
+    serial = NeuralSolver(net=net, threads=1)(x)
+    pooled = NeuralSolver(net=net, threads=2)(x)
+    assert torch.get_num_threads() == 1  # the call restores torch's thread setting
+    for u, v in zip(serial, pooled, strict=True):
+        assert torch.allclose(u, v, atol=1e-6)
+
+
 def test_clean_points_lie_on_camera_facing_sides():
     cfg = SyntheticConfig().clean()
     batch = sample_batch(500, cfg, torch.Generator().manual_seed(11))
     assert batch.points.shape == (500, 6, 3) and bool(batch.inlier.all())
-    sq = set_sq_distances(batch.points.double(), batch.centers.double(), batch.half_sizes.double(),
-                          batch.rotations.double())
+    sq = set_sq_distances(
+        batch.points.double(), batch.centers.double(), batch.half_sizes.double(), batch.rotations.double()
+    )
     assert float(sq.max()) < 1e-10
     assert float(batch.points[..., 2].min()) >= cfg.min_depth
     # Each point lies on the plane of its side, and the camera (origin) is on the outer side of that plane.
-    local = torch.einsum("bck,bkj->bcj", batch.points.double() - batch.centers.double()[:, None],
-                         batch.rotations.double())
+    local = torch.einsum(
+        "bck,bkj->bcj", batch.points.double() - batch.centers.double()[:, None], batch.rotations.double()
+    )
     axis = torch.tensor(SIDE_AXIS)[batch.sides]
     sign = torch.tensor(SIDE_SIGN, dtype=torch.float64)[batch.sides]
     on_axis = local.gather(-1, axis[..., None])[..., 0]
     a = batch.half_sizes.double()[:, None, :].expand_as(local).gather(-1, axis[..., None])[..., 0]
     assert torch.allclose(on_axis, sign * a, atol=1e-5)
-    normal = torch.einsum("bij,bcj->bci", batch.rotations.double(),
-                          torch.nn.functional.one_hot(axis, 3).double() * sign[..., None])
+    normal = torch.einsum(
+        "bij,bcj->bci",
+        batch.rotations.double(),
+        torch.nn.functional.one_hot(axis, 3).double() * sign[..., None],
+    )
     assert bool(((batch.points.double() * normal).sum(-1) < 0).all())
     weights = side_weights(batch.centers, batch.half_sizes, batch.rotations)
     assert bool((weights.gather(1, batch.sides) > 0).all())
@@ -183,7 +198,14 @@ def _records(path):
 
 def test_resume_continues_exactly(tmp_path):
     cfg = SolverTrainConfig(
-        iters=6, batch=32, lr=3e-3, warmup=2, log_every=1, val_every=3, ckpt_every=3, val_sets=16,
+        iters=6,
+        batch=32,
+        lr=3e-3,
+        warmup=2,
+        log_every=1,
+        val_every=3,
+        ckpt_every=3,
+        val_sets=16,
         threads=1,
     )
     full = train_solver(cfg, TINY, tmp_path / "a")

@@ -124,6 +124,7 @@ def solver(
     note = " (stopped by --max-minutes)" if final["timed_out"] else ""
     out.print(f"done at step {final['iteration']}{note}; best weights: {final['best']}")
 
+
 from cuboidcli.cli import train_sampler as _train_sampler  # noqa: E402
 
 _train_sampler.register(train_app)

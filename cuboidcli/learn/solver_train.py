@@ -293,15 +293,19 @@ def train_solver(
     return final
 
 
-def median_seconds(solver: Callable, points: Tensor, repeats: int = 5) -> float:
-    """Median wall time of ``solver(points)`` over ``repeats`` calls, after one warm-up call."""
+def median_seconds(solver: Callable, points: Tensor, repeats: int = 5) -> dict:
+    """Median wall and process CPU time of ``solver(points)`` over ``repeats`` calls after a warm-up, s.
+
+    On a shared machine the wall time depends on the load; CPU time summed over this process's threads
+    is closer to what an idle machine would take on one core."""
     solver(points)
-    times = []
+    wall, cpu = [], []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start, start_cpu = time.perf_counter(), time.process_time()
         solver(points)
-        times.append(time.perf_counter() - start)
-    return sorted(times)[len(times) // 2]
+        wall.append(time.perf_counter() - start)
+        cpu.append(time.process_time() - start_cpu)
+    return {"wall_s": sorted(wall)[len(wall) // 2], "cpu_s": sorted(cpu)[len(cpu) // 2]}
 
 
 def compare_on_validation(weights: str | Path | None = None, n_sets: int = 4096, repeats: int = 5) -> dict:
@@ -324,5 +328,5 @@ def compare_on_validation(weights: str | Path | None = None, n_sets: int = 4096,
     report = {"weights": str(path), "sets": n_sets, "threads": torch.get_num_threads()}
     for name, solver in solvers.items():
         report[name] = {k: evaluate_solver(solver, batch) for k, batch in val.items()}
-        report[name]["median_seconds"] = median_seconds(solver, val["noisy"].points, repeats)
+        report[name]["time_median"] = median_seconds(solver, val["noisy"].points, repeats)
     return report

@@ -13,6 +13,7 @@ import hashlib
 import json
 import os
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -108,7 +109,8 @@ class OnnxSolver:
 
     ``minimal_sets`` (H, C, 3) m -> centers (H, 3), half_sizes (H, 3), rotations (H, 3, 3), in the input's
     dtype and device. ``bounds`` default to those stored in the model; other bounds are an error.
-    ``threads``: onnxruntime intra-op threads (default: torch's thread count).
+    ``threads``: chunks run concurrently in this many threads (default: torch's thread count), each
+    single-threaded inside onnxruntime, for the reason given in :class:`NeuralSolver`.
     """
 
     name = "onnx"
@@ -124,12 +126,20 @@ class OnnxSolver:
         if not path.is_file():
             raise FileNotFoundError(f"ONNX solver {path} not found; export one with export_solver_onnx()")
         options = ort.SessionOptions()
-        options.intra_op_num_threads = threads or torch.get_num_threads()
+        options.intra_op_num_threads = 1
+        options.inter_op_num_threads = 1
+        self.threads = max(1, threads or torch.get_num_threads())
+        self._pool = (
+            ThreadPoolExecutor(self.threads, thread_name_prefix="onnx-solver") if self.threads > 1 else None
+        )
         self.session = ort.InferenceSession(str(path), options, providers=["CPUExecutionProvider"])
         props = self.session.get_modelmeta().custom_metadata_map
         if "cuboids.a_min" not in props:
             raise ValueError(f"{path} is not a solver exported by cuboids (no size bounds in its metadata)")
         self.bounds = check_bounds(bounds, float(props["cuboids.a_min"]), float(props["cuboids.a_max"]))
+
+    def _run_chunk(self, sets: np.ndarray) -> list[np.ndarray]:
+        return self.session.run(list(OUTPUTS), {INPUT: sets})  # InferenceSession.run is thread-safe
 
     def __call__(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         if minimal_sets.ndim != 3 or minimal_sets.shape[-1] != 3:
@@ -137,6 +147,7 @@ class OnnxSolver:
         x = minimal_sets.detach().to("cpu", torch.float32).contiguous().numpy()
         # Chunked like the torch solver: small batches stay in the CPU cache.
         chunks = [x[i : i + CHUNK_SETS] for i in range(0, len(x), CHUNK_SETS)] or [x]
-        parts = [self.session.run(list(OUTPUTS), {INPUT: c}) for c in chunks]
+        run = self._run_chunk
+        parts = list(self._pool.map(run, chunks)) if self._pool is not None else [run(c) for c in chunks]
         outs = [np.concatenate(p) for p in zip(*parts, strict=True)]
         return tuple(torch.from_numpy(o).to(minimal_sets.device, minimal_sets.dtype) for o in outs)
