@@ -1,0 +1,66 @@
+"""Save the learned sampler's Q sampling-weight maps for a frame as one PNG (RGB | map 1..Q), for the first
+step (empty state) of the estimator. Used to inspect what the network attends to.
+
+    python scripts/show_sampler_maps.py DATASET FRAME OUT.png [--weights DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+
+import cv2
+import numpy as np
+import torch
+
+from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.sampling import SamplingContext, make_sampler
+from cuboidcli.io.atomic import atomic_write_bytes
+from cuboidcli.io.dataset import list_frames
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("dataset")
+    ap.add_argument("frame")
+    ap.add_argument("out")
+    ap.add_argument("--weights", default=None)
+    args = ap.parse_args()
+    frame = next(f for f in list_frames(args.dataset) if f.name == args.frame)
+    depth = frame.depth_m()
+    prep = prepare_points(depth, frame.camera, 8)
+    sampler = make_sampler("learned", args.weights)
+    ctx = SamplingContext(
+        prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, torch.zeros(prep.points.shape[0]), 0
+    )
+    with torch.no_grad():
+        p, q = sampler.distributions(ctx)
+    hs, ws = prep.grid_shape
+    h, w = depth.shape
+    tiles = []
+    rgb = frame.rgb()
+    tiles.append(cv2.resize(rgb if rgb is not None else np.zeros((h, w, 3), np.uint8), (w // 2, h // 2)))
+    for j in range(p.shape[0]):
+        grid = np.zeros(hs * ws)
+        grid[prep.grid_index.numpy()] = p[j].numpy()
+        img = (255 * grid / max(grid.max(), 1e-12)).reshape(hs, ws).astype(np.uint8)
+        img = cv2.applyColorMap(
+            cv2.resize(img, (w // 2, h // 2), interpolation=cv2.INTER_NEAREST), cv2.COLORMAP_INFERNO
+        )[..., ::-1].copy()
+        cv2.putText(
+            img,
+            f"map {j + 1}  q={float(q[j]):.2f}",
+            (8, 22),
+            cv2.FONT_HERSHEY_SIMPLEX,
+            0.6,
+            (255, 255, 255),
+            1,
+            cv2.LINE_AA,
+        )
+        tiles.append(img)
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(np.concatenate(tiles, axis=1), cv2.COLOR_RGB2BGR))
+    atomic_write_bytes(args.out, buf.tobytes())
+    print(f"wrote {args.out}")
+
+
+if __name__ == "__main__":
+    main()
