@@ -230,6 +230,17 @@ def _gains(
         out[h] = -np.inf if pruned else acc
 
 
+def _f64(*arrays) -> list[np.ndarray]:
+    return [np.ascontiguousarray(a, np.float64) for a in arrays]
+
+
+def _inlier_params(tau: float, beta: float, tau_c: float, occlusion_aware: bool) -> tuple:
+    """(beta, 1/tau, tau_c, slope, offset, cutoff, oai): the scalar arguments every kernel takes."""
+    slope, offset = leaky_constants(tau, beta, tau_c)
+    cutoff = tau * (1.0 + 40.0 / beta)  # f_I < 1e-17 beyond: treated as 0
+    return float(beta), 1.0 / tau, float(tau_c), slope, offset, cutoff, bool(occlusion_aware)
+
+
 def score_gains(
     points,
     centers,
@@ -252,32 +263,20 @@ def score_gains(
     running sum plus the remaining points' bound below the threshold settles it. Exact for every hypothesis
     that reaches the threshold, so the argmax is unchanged whenever some hypothesis reaches it.
     """
-    slope, offset = leaky_constants(tau, beta, tau_c)
-    cutoff = tau * (1.0 + 40.0 / beta)
-    out = np.empty(centers.shape[0], dtype=np.float64)
-    f = np.float64
-    points = np.ascontiguousarray(points, f)
+    points, state = _f64(points, state)
     with np.errstate(divide="ignore", invalid="ignore"):
         uv = np.ascontiguousarray(points[:, :2] / points[:, 2:3])
-    state = np.ascontiguousarray(state, f)
     ub = np.where(state < 0, 0.0, np.maximum(0.0, 1.0 - state))
     ub_suffix = np.concatenate([np.cumsum(ub[::-1])[::-1], [0.0]])
+    out = np.empty(centers.shape[0], dtype=np.float64)
     _gains(
         points,
         uv,
-        np.ascontiguousarray(centers, f),
-        np.ascontiguousarray(half_sizes, f),
-        np.ascontiguousarray(rotations, f),
+        *_f64(centers, half_sizes, rotations),
         state,
         ub_suffix,
         float(prune_below),
-        float(beta),
-        1.0 / tau,
-        float(tau_c),
-        slope,
-        offset,
-        cutoff,
-        bool(occlusion_aware),
+        *_inlier_params(tau, beta, tau_c, occlusion_aware),
         out,
     )
     return out
@@ -330,22 +329,8 @@ def cuboid_values(
     occlusion_aware: bool = True,
 ) -> np.ndarray:
     """f_OAI(y, {h}) of each cuboid on its own: (H, N) float64 (numpy in, numpy out)."""
-    slope, offset = leaky_constants(tau, beta, tau_c)
-    cutoff = tau * (1.0 + 40.0 / beta)
-    f = np.float64
     out = np.empty((centers.shape[0], points.shape[0]), dtype=np.float64)
     _values(
-        np.ascontiguousarray(points, f),
-        np.ascontiguousarray(centers, f),
-        np.ascontiguousarray(half_sizes, f),
-        np.ascontiguousarray(rotations, f),
-        float(beta),
-        1.0 / tau,
-        float(tau_c),
-        slope,
-        offset,
-        cutoff,
-        bool(occlusion_aware),
-        out,
+        *_f64(points, centers, half_sizes, rotations), *_inlier_params(tau, beta, tau_c, occlusion_aware), out
     )
     return out
