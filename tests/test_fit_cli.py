@@ -181,3 +181,23 @@ def test_rgb_only_uses_the_depth_estimator(tmp_path):
     assert len(d["cuboids"]) == 1
     r = run("fit", img, "--depth-model", tmp_path / "missing.pt", "-o", out)
     assert r.exit_code == 2 and "not found" in r.output
+
+
+def test_demo_writes_every_output(tmp_path):
+    r = run("demo", "-o", tmp_path / "demo")
+    assert r.exit_code == 0, r.output
+    names = sorted(p.name for p in (tmp_path / "demo").iterdir())
+    assert names == sorted(
+        [
+            "sample_cuboids.json",
+            "sample_cuboids.glb",
+            "sample_cuboids_points.ply",
+            "sample_cuboids_cuboids.ply",
+            "sample_cuboids_overlay.png",
+            "sample_cuboids_labels.png",
+            "sample_cuboids_labels_color.png",
+            "sample_cuboids_panel.png",
+        ]
+    )
+    d = json.loads((tmp_path / "demo" / "sample_cuboids.json").read_text())
+    assert len(d["cuboids"]) >= 2  # at least the two walls of the sample room

@@ -338,6 +338,11 @@ def demo(
         overlay=True,
         with_points=True,
         quiet=False,
+        depth_model=None,
+        depth_model_kind="metric",
+        relative_scale=None,
+        relative_shift=None,
+        partial_depth=None,
     )
 
 
