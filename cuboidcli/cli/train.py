@@ -39,7 +39,7 @@ def _progress() -> Progress:
 @train_app.command("solver")
 def solver(
     iters: int = typer.Option(50000, "--iters", help="Optimizer steps (the paper: 150k at batch 4096, GPU)."),
-    batch: int = typer.Option(256, "--batch", help="Synthetic minimal sets per step."),
+    batch: int = typer.Option(256, "--batch", help="Synthetic minimal sets per step and process."),
     lr: float = typer.Option(3e-3, "--lr", help="Peak Adam learning rate (warm-up, then cosine decay)."),
     width: int = typer.Option(64, "--width", help="Feature channels d of the network (128 in the paper)."),
     layers: int = typer.Option(2, "--layers", help="Transformer encoder layers (4 in the paper)."),
@@ -62,8 +62,24 @@ def solver(
         "time, and training stops there (not bit-reproducible then).",
     ),
     val_every: int = typer.Option(1000, "--val-every", help="Validate and keep the best every N steps."),
+    backend: str | None = typer.Option(
+        None,
+        "--backend",
+        help="torch.distributed backend under torchrun (gloo, nccl); default nccl on CUDA, gloo on CPU.",
+    ),
 ) -> None:
-    """Pre-train the neural cuboid solver on synthetic boxes; best weights go to OUT/best.pt."""
+    """Pre-train the neural cuboid solver on synthetic boxes; best weights go to OUT/best.pt.
+
+    Multi-process (data parallel, one process per GPU or per group of CPU cores), e.g. 2 processes:
+
+        torchrun --standalone --nproc_per_node 2 -m cuboidcli.cli.main train solver --out runs/solver
+
+    or torchrun ... $(which cuboids) train solver ... (the console script is a Python file);
+    multi-node: --nnodes N --node_rank R --rdzv_endpoint HOST:PORT instead of --standalone. Each process
+    draws --batch sets per step, so a step sees --batch x processes sets; --iters and the lr schedule
+    count steps. Process 0 alone validates, prints and writes OUT, which must be shared for --resume.
+    """
+    from cuboidcli.learn.distributed import launched_rank
     from cuboidcli.learn.solver_net import SolverNetConfig
     from cuboidcli.learn.solver_train import SolverTrainConfig, train_solver
 
@@ -99,7 +115,11 @@ def solver(
     )
     net_cfg = SolverNetConfig(width=width, layers=layers, heads=heads, ff=ff)
 
-    with _progress() as progress:
+    # Under torchrun only rank 0 reports; the others would draw duplicate progress bars.
+    main_rank = launched_rank() == 0
+    progress_bar = _progress()
+    progress_bar.disable = not main_rank
+    with progress_bar as progress:
         task = progress.add_task("solver", total=iters, status="")
 
         def on_event(record: dict) -> None:
@@ -118,9 +138,11 @@ def solver(
                 )
 
         try:
-            final = train_solver(cfg, net_cfg, out_dir, resume=resume, on_event=on_event)
+            final = train_solver(cfg, net_cfg, out_dir, resume=resume, on_event=on_event, backend=backend)
         except ValueError as e:
             fail(str(e))
+    if not main_rank:
+        return
     note = " (stopped by --max-minutes)" if final["timed_out"] else ""
     out.print(f"done at step {final['iteration']}{note}; best weights: {final['best']}")
 

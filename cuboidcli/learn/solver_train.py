@@ -10,6 +10,13 @@ Files in ``out_dir``: ``config.json`` (resolved configs), ``log.jsonl`` (one rec
 event), ``last.pt`` and ``step_XXXXXXX.pt`` (training state: weights, optimizer, RNG, iteration; the last
 ``keep_snapshots`` are kept) and ``best.pt`` (weights-only, the lowest validation residual so far).
 This module prints nothing: progress goes to the ``on_event`` callback.
+
+Multi-process (``torchrun``, see :mod:`cuboidcli.learn.distributed`): every rank holds a replica wrapped in
+DistributedDataParallel and draws its own ``batch`` sets per step (from a seed of run seed, iteration and
+rank, :func:`batch_seed`), so the global batch is ``batch * world_size`` and the gradient is the mean over
+it. The lr schedule counts optimizer steps, identical on every rank; ``lr`` is the rate for the global
+batch and is not rescaled with the world size. Rank 0 alone validates and writes files; decisions taken
+from its clock (the time budget) are broadcast so that all ranks change lr and stop at the same step.
 """
 
 from __future__ import annotations
@@ -26,11 +33,15 @@ from torch import Tensor
 
 from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.io.atomic import atomic_write, atomic_write_json
+from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.solver_data import SyntheticBatch, SyntheticConfig, seeded_batch
 from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict, parameter_count
 
 #: Seeds of the held-out validation sets live far from the training seeds (seed * 2^32 + iteration).
 VAL_SEED = 2**62 + 2024
+#: Rank r > 0 offsets its training seeds by r * RANK_SEED_STRIDE: rank 0 keeps the single-process stream,
+#: and the ranks' streams cannot meet as long as seed < 2^16 and iterations < 2^32.
+RANK_SEED_STRIDE = 2**48
 
 
 @dataclass(frozen=True)
@@ -40,7 +51,7 @@ class SolverTrainConfig:
     iters: int = 50000
     """Optimizer steps (the paper: 150k at batch 4096 on a GPU)."""
     batch: int = 256
-    """Minimal sets per step."""
+    """Minimal sets per step and process: a run on N processes takes batch * N sets per step."""
     lr: float = 3e-3
     """Peak Adam learning rate (the paper: 1e-4, constant)."""
     warmup: int = 500
@@ -83,6 +94,11 @@ def solver_loss(net: SolverNet, points: Tensor, inlier: Tensor) -> Tensor:
     """l_solver of the paper over the inlier points, averaged over the batch: points (B, C, 3), inlier
     (B, C) -> scalar, m^2."""
     return masked_set_mean(set_sq_distances(points, *net(points)), inlier).mean()
+
+
+def batch_seed(seed: int, it: int, rank: int = 0) -> int:
+    """Seed of the training batch of step ``it`` (0-based) on ``rank``; rank 0 is the single-process one."""
+    return seed * 2**32 + it + rank * RANK_SEED_STRIDE
 
 
 def lr_at(it: int, cfg: SolverTrainConfig, time_fraction: float = 0.0) -> float:
@@ -133,7 +149,9 @@ def _net_solver(net: SolverNet) -> Callable:
     return NeuralSolver(net=net, device=next(net.parameters()).device)
 
 
-def _train_state(net, opt, it: int, best: float, elapsed_s: float, cfg, net_cfg, data_cfg) -> dict:
+def _train_state(
+    net, opt, it: int, best: float, elapsed_s: float, cfg, net_cfg, data_cfg, world: int
+) -> dict:
     return {
         "kind": "solver-train-state",
         "config": net_cfg.to_dict(),
@@ -145,6 +163,7 @@ def _train_state(net, opt, it: int, best: float, elapsed_s: float, cfg, net_cfg,
         "elapsed_s": elapsed_s,
         "train_config": asdict(cfg),
         "data_config": data_cfg.to_dict(),
+        "world_size": world,
     }
 
 
@@ -155,17 +174,38 @@ def train_solver(
     data_cfg: SyntheticConfig | None = None,
     resume: str | Path | None = None,
     on_event: Callable[[dict], None] | None = None,
+    backend: str | None = None,
 ) -> dict:
     """Run (or resume) pre-training; returns the final record (iteration, best validation, paths).
 
-    Exactly reproducible from ``cfg.seed`` unless a time budget (``max_minutes``) shapes the schedule.
+    Exactly reproducible from ``cfg.seed`` (and the number of processes) unless a time budget
+    (``max_minutes``) shapes the schedule.
 
     When resuming, the schedule, data and net shape come from the checkpoint; only ``threads``,
     ``device``, ``max_minutes`` and the logging intervals of ``cfg`` apply.
+
+    Launched by ``torchrun`` with ``WORLD_SIZE > 1``, this joins the process group for the duration of
+    the call (``backend``: None = nccl on CUDA, gloo on CPU, or ``$CUBOIDS_DIST_BACKEND``); only rank 0
+    calls ``on_event`` and writes to ``out_dir``, which must then be visible to every rank (resume reads
+    it on all of them). The final record adds ``world_size`` and ``param_sha256``, one hash of the final
+    weights per rank, all equal when the replicas stayed in sync.
     """
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    emit = on_event or (lambda record: None)
+    with distributed(cfg.device, backend) as ctx:
+        return _train(ctx, cfg, net_cfg, Path(out_dir), data_cfg, resume, on_event)
+
+
+def _train(
+    ctx: DistContext,
+    cfg: SolverTrainConfig,
+    net_cfg: SolverNetConfig,
+    out_dir: Path,
+    data_cfg: SyntheticConfig | None,
+    resume: str | Path | None,
+    on_event: Callable[[dict], None] | None,
+) -> dict:
+    if ctx.is_main:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    emit = (on_event if ctx.is_main else None) or (lambda record: None)
     state = None
     if resume is not None:
         state = torch.load(resume, map_location="cpu", weights_only=True)
@@ -178,25 +218,51 @@ def train_solver(
     data_cfg = data_cfg or SyntheticConfig()
     torch.set_num_threads(cfg.threads)
     device = torch.device(cfg.device)
+    if ctx.active and device.type == "cuda":
+        device = torch.device("cuda", ctx.local_rank)  # one GPU per process on the node
 
+    # Same seed on every rank, so the replicas start equal even before DDP broadcasts rank 0's weights.
     torch.manual_seed(cfg.seed)
     net = SolverNet(net_cfg).to(device)
+    # ``model`` is what the loss calls: DDP all-reduces (averages) the gradients during backward, so every
+    # rank clips and steps with the same gradient. Validation and checkpoints use the bare ``net``.
+    model = net
+    if ctx.active:
+        from torch.nn.parallel import DistributedDataParallel
+
+        model = DistributedDataParallel(net, device_ids=[device.index] if device.type == "cuda" else None)
     opt = torch.optim.Adam(net.parameters(), lr=lr_at(0, cfg))
     start, best, spent_s = 0, math.inf, 0.0
     if state is not None:
         net.load_state_dict(state["state_dict"])
         opt.load_state_dict(state["optimizer"])
+        # The global RNG draws nothing during training (batches come from seeded generators of their own,
+        # the net has no dropout), so rank 0's saved state serves every rank.
         torch.set_rng_state(state["rng"])
         start, best, spent_s = int(state["iteration"]), float(state["best_msd_m2"]), float(state["elapsed_s"])
     resolved = {"train": asdict(cfg), "net": net_cfg.to_dict(), "data": data_cfg.to_dict()}
     resolved["resumed_from"] = None if resume is None else str(resume)
-    atomic_write_json(out_dir / "config.json", resolved)
-    val = validation_sets(cfg.val_sets, data_cfg)
+    if ctx.active:
+        resolved["distributed"] = {"world_size": ctx.world_size, "backend": ctx.backend}
+    if ctx.is_main:
+        atomic_write_json(out_dir / "config.json", resolved)
+    # Only rank 0 validates; the others wait for it in the next gradient all-reduce.
+    val = validation_sets(cfg.val_sets, data_cfg) if ctx.is_main else {}
     log_path = out_dir / "log.jsonl"
     n_params = parameter_count(net)
-    emit({"event": "start", "iteration": start, "iters": cfg.iters, "parameters": n_params})
+    emit(
+        {
+            "event": "start",
+            "iteration": start,
+            "iters": cfg.iters,
+            "parameters": n_params,
+            "world_size": ctx.world_size,
+        }
+    )
 
     def log(record: dict) -> None:
+        if not ctx.is_main:
+            return
         with log_path.open("a", encoding="utf-8") as f:
             f.write(json.dumps(record) + "\n")
         emit(record)
@@ -211,10 +277,15 @@ def train_solver(
         return spent_s + time.perf_counter() - t0
 
     def time_fraction() -> float:
-        return 0.0 if cfg.max_minutes is None else elapsed() / (60.0 * cfg.max_minutes)
+        if cfg.max_minutes is None:
+            return 0.0
+        # Rank 0's clock rules: the lr and the stop decision derive from it and must agree on all ranks.
+        return ctx.broadcast_float(elapsed() / (60.0 * cfg.max_minutes))
 
     def save_state(it: int) -> None:
-        blob = _train_state(net, opt, it, best, elapsed(), cfg, net_cfg, data_cfg)
+        if not ctx.is_main:
+            return
+        blob = _train_state(net, opt, it, best, elapsed(), cfg, net_cfg, data_cfg, ctx.world_size)
         save_checkpoint(blob, out_dir / f"step_{it:07d}.pt")
         save_checkpoint(blob, out_dir / "last.pt")
         for old in sorted(out_dir.glob("step_*.pt"))[: -cfg.keep_snapshots]:
@@ -225,11 +296,11 @@ def train_solver(
     it = start
     net.train()
     while it < cfg.iters:
-        batch = seeded_batch(cfg.batch, data_cfg, cfg.seed * 2**32 + it)
+        batch = seeded_batch(cfg.batch, data_cfg, batch_seed(cfg.seed, it, ctx.rank))
         points, inlier = batch.points.to(device), batch.inlier.to(device)
         for group in opt.param_groups:
             group["lr"] = lr = lr_at(it, cfg, time_fraction())
-        loss = solver_loss(net, points, inlier)
+        loss = solver_loss(model, points, inlier)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), cfg.grad_clip)
@@ -245,15 +316,16 @@ def train_solver(
                 {
                     "event": "train",
                     "iteration": it,
-                    "loss_m2": window_loss / window_n,
+                    # A collective: every rank logs at the same steps, so all of them get here.
+                    "loss_m2": ctx.mean_float(window_loss / window_n),
                     "lr": lr,
                     "grad_norm": float(grad_norm),
-                    "sets_per_s": window_n * cfg.batch / max(now - window_t, 1e-9),
+                    "sets_per_s": window_n * cfg.batch * ctx.world_size / max(now - window_t, 1e-9),
                     "elapsed_s": elapsed(),
                 }
             )
             window_t, window_loss, window_n = now, 0.0, 0
-        if it % cfg.val_every == 0 or last:
+        if ctx.is_main and (it % cfg.val_every == 0 or last):
             metrics = validate(it)
             improved = metrics["noisy"]["msd_m2"] < best
             if improved:
@@ -288,8 +360,12 @@ def train_solver(
         "elapsed_s": elapsed(),
         "best": str(out_dir / "best.pt"),
         "last": str(out_dir / "last.pt"),
+        "world_size": ctx.world_size,
+        "param_sha256": ctx.gather(state_sha256(net.state_dict())),
     }
     log(final)
+    # Rank 0 finishes its files before any rank tears the process group down.
+    ctx.barrier()
     return final
 
 
