@@ -92,7 +92,9 @@ def _str_or_none(p) -> str | None:
     return None if p is None else str(p)
 
 
-def _config(hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast):
+def _config(
+    hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast, refine=True
+):
     from cuboidcli.fitting.config import FitConfig
 
     if hypotheses < 1:
@@ -116,6 +118,7 @@ def _config(hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_
         grid_step=grid_step,
         occlusion_aware=not no_oai,
         prescore_points=600 if fast else 0,
+        refine=refine,
     )
 
 
@@ -170,6 +173,9 @@ def fit(
     fast: bool = typer.Option(
         False, "--fast", help="Approximate scoring: rank hypotheses on 600 points first."
     ),
+    refine: bool = typer.Option(
+        True, "--refine/--no-refine", help="Refine each selected cuboid on its inliers."
+    ),
     glb: bool = typer.Option(False, "--glb", help="Also write <out>.glb."),
     ply: bool = typer.Option(False, "--ply", help="Also write <out>_points.ply and <out>_cuboids.ply."),
     overlay: bool = typer.Option(False, "--overlay", help="Also write overlay, label and panel PNGs."),
@@ -197,7 +203,9 @@ def fit(
         fail("give a depth map with --depth D.png or an RGB image (see cuboids fit --help)")
     if depth_model_kind not in ("metric", "relative", "relative-inverse"):
         fail(f"--depth-model-kind {depth_model_kind!r}: choose metric, relative or relative-inverse")
-    config = _config(hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast)
+    config = _config(
+        hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast, refine
+    )
     if solver == "onnx" and onnx is None:
         fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
     if image is not None and not image.exists():
@@ -333,6 +341,7 @@ def demo(
         grid_step=8,
         no_oai=False,
         fast=False,
+        refine=True,
         glb=True,
         ply=True,
         overlay=True,
