@@ -105,12 +105,13 @@ class LocalSampler(SequentialSampler):
         return idx
 
 
-def draw_minimal_sets(
+def draw_sets_and_maps(
     p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
-) -> Tensor:
-    """Indices (H, C) of minimal sets: map j ~ q per hypothesis, then C points ~ p_j with replacement.
+) -> tuple[Tensor, Tensor]:
+    """Minimal sets: map j(h) ~ q per hypothesis, then C points ~ p_j with replacement.
 
-    Draws happen on the CPU generator so that results do not depend on the device.
+    p (Q, N), q (Q,) -> (maps (H,) long, indices (H, C) long). The chosen maps are what the sampler's
+    policy gradient needs. Draws happen on the CPU generator so that results do not depend on the device.
     """
     p = p.detach().double().cpu()
     q = q.detach().double().cpu()
@@ -124,7 +125,14 @@ def draw_minimal_sets(
         if sel.numel():
             draws = torch.multinomial(p[j], sel.numel() * min_set, replacement=True, generator=generator)
             idx[sel] = draws.view(-1, min_set)
-    return idx
+    return maps, idx
+
+
+def draw_minimal_sets(
+    p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
+) -> Tensor:
+    """Indices (H, C) of minimal sets drawn as :func:`draw_sets_and_maps`."""
+    return draw_sets_and_maps(p, q, hypotheses, min_set, generator)[1]
 
 
 def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:

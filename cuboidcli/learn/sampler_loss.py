@@ -35,6 +35,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+from cuboidcli.fitting.sampling import draw_sets_and_maps
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
 from cuboidcli.solvers.base import CuboidSolver
 
@@ -85,20 +86,10 @@ def draw_sets(
 ) -> tuple[Tensor, Tensor]:
     """Draw |H| minimal sets: map j(h) ~ q, then C point indices ~ p_j with replacement.
 
-    p (Q, N), q (Q,) -> maps (H,) long, idx (H, C) long. Like
-    :func:`cuboidcli.fitting.sampling.draw_minimal_sets` but also returns the chosen maps, which the
-    policy gradient needs. Draws use the CPU generator.
+    p (Q, N), q (Q,) -> maps (H,) long, idx (H, C) long: the estimator's own drawing
+    (:func:`cuboidcli.fitting.sampling.draw_sets_and_maps`), so training samples as inference does.
     """
-    p = p.detach().double().cpu()
-    q = q.detach().double().cpu()
-    maps = torch.multinomial(q, hypotheses, replacement=True, generator=generator)
-    idx = torch.empty(hypotheses, min_set, dtype=torch.long)
-    for j in range(p.shape[0]):
-        sel = (maps == j).nonzero().squeeze(1)
-        if sel.numel():
-            draws = torch.multinomial(p[j], sel.numel() * min_set, replacement=True, generator=generator)
-            idx[sel] = draws.view(-1, min_set)
-    return maps, idx
+    return draw_sets_and_maps(p, q, hypotheses, min_set, generator)
 
 
 def set_log_prob(log_p: Tensor, log_q: Tensor, maps: Tensor, idx: Tensor) -> Tensor:
