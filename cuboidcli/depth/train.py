@@ -36,7 +36,7 @@ import torch.nn.functional as F  # noqa: N812 - the usual alias
 from cuboidcli.depth.estimator import BuiltinDepthEstimator, resize
 from cuboidcli.depth.evaluate import evaluate_frames
 from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict, parameter_count
-from cuboidcli.io.atomic import atomic_write, atomic_write_json
+from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.dataset import Frame, list_frames
 
 
@@ -159,10 +159,6 @@ def lr_at(step: int, total_steps: int, cfg: DepthTrainConfig, time_fraction: flo
     )
 
 
-def _save(blob: dict, path: Path) -> None:
-    atomic_write(path, lambda tmp: torch.save(blob, tmp))
-
-
 def train_depth(
     data: str | Path,
     out_dir: str | Path,
@@ -277,7 +273,7 @@ def train_depth(
                 "data": str(data),
                 "elapsed_s": elapsed(),
             }
-            _save(checkpoint_dict(net, meta), out_dir / "best.pt")
+            atomic_torch_save(checkpoint_dict(net, meta), out_dir / "best.pt")
         log({"event": "val", "epoch": epoch, "step": step, "best": improved, "elapsed_s": elapsed(), **val})
         blob = {
             "kind": "depth-train-state",
@@ -291,7 +287,7 @@ def train_depth(
             "elapsed_s": elapsed(),
             "train_config": asdict(cfg),
         }
-        _save(blob, out_dir / "last.pt")
+        atomic_torch_save(blob, out_dir / "last.pt")
     final = {
         "event": "done",
         "epoch": epoch,

@@ -142,6 +142,16 @@ def leaky_constants(tau: float, beta: float, tau_c: float) -> tuple[float, float
     return slope, 1.0 - fi_c - slope * tau_c
 
 
+@njit(cache=True, inline="always")
+def camera_local(t0, t1, t2, R):
+    """The camera centre (the origin) in a cuboid's frame: -R^T t."""
+    return (
+        -(R[0, 0] * t0 + R[1, 0] * t1 + R[2, 0] * t2),
+        -(R[0, 1] * t0 + R[1, 1] * t1 + R[2, 1] * t2),
+        -(R[0, 2] * t0 + R[1, 2] * t1 + R[2, 2] * t2),
+    )
+
+
 @njit(cache=True)
 def _screen(t0, t1, t2, a0, a1, a2, R, cutoff):
     """Per-hypothesis bounds for skipping pairs that cannot contribute.
@@ -197,10 +207,7 @@ def _gains(
         a0, a1, a2 = half[h, 0], half[h, 1], half[h, 2]
         R = rot[h]
         r2, u_lo, u_hi, v_lo, v_hi = _screen(t0, t1, t2, a0, a1, a2, R, cutoff)
-        # camera centre (origin) in the cuboid frame: -R^T t
-        c0 = -(R[0, 0] * t0 + R[1, 0] * t1 + R[2, 0] * t2)
-        c1 = -(R[0, 1] * t0 + R[1, 1] * t1 + R[2, 1] * t2)
-        c2 = -(R[0, 2] * t0 + R[1, 2] * t1 + R[2, 2] * t2)
+        c0, c1, c2 = camera_local(t0, t1, t2, R)
         acc = 0.0
         pruned = False
         for i in range(n):
@@ -285,13 +292,16 @@ def score_gains(
 @njit(parallel=True, cache=True)
 def _values(points, centers, half, rot, beta, inv_tau, tau_c, slope, offset, cutoff, oai, out):
     n = points.shape[0]
+    cams = np.empty((centers.shape[0], 3))
+    for h in range(centers.shape[0]):
+        cams[h, 0], cams[h, 1], cams[h, 2] = camera_local(
+            centers[h, 0], centers[h, 1], centers[h, 2], rot[h]
+        )
     for i in prange(n):
         for h in range(centers.shape[0]):
             R = rot[h]
             t0, t1, t2 = centers[h, 0], centers[h, 1], centers[h, 2]
-            c0 = -(R[0, 0] * t0 + R[1, 0] * t1 + R[2, 0] * t2)
-            c1 = -(R[0, 1] * t0 + R[1, 1] * t1 + R[2, 1] * t2)
-            c2 = -(R[0, 2] * t0 + R[1, 2] * t1 + R[2, 2] * t2)
+            c0, c1, c2 = cams[h, 0], cams[h, 1], cams[h, 2]
             x = points[i, 0] - t0
             y = points[i, 1] - t1
             z = points[i, 2] - t2

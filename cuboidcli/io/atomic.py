@@ -46,3 +46,10 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
 
 def atomic_write_json(path: str | os.PathLike, obj) -> Path:
     return atomic_write_text(path, json.dumps(obj, indent=2) + "\n")
+
+
+def atomic_torch_save(obj, path: str | os.PathLike) -> Path:
+    """``torch.save`` through a temporary file, so an interrupted run never leaves a truncated checkpoint."""
+    import torch
+
+    return atomic_write(path, lambda tmp: torch.save(obj, tmp))

@@ -37,7 +37,7 @@ from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import PreparedPoints, fit_depth
 from cuboidcli.fitting.sampling import SamplingContext
 from cuboidcli.geometry.kernels import combine
-from cuboidcli.io.atomic import atomic_write, atomic_write_json
+from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
 from cuboidcli.learn.sampler_loss import LossParams, instance_loss, occlusion_threshold
@@ -221,11 +221,6 @@ def validate(
     return out, key, float(out[key])
 
 
-def save_checkpoint(blob: dict, path: str | Path) -> Path:
-    """``torch.save`` through a temporary file, so an interruption never leaves a truncated checkpoint."""
-    return atomic_write(path, lambda tmp: torch.save(blob, tmp))
-
-
 def _load_state(path: str | Path) -> dict:
     state = torch.load(path, map_location="cpu", weights_only=True)
     if not isinstance(state, dict) or state.get("kind") != STATE_KIND:
@@ -332,8 +327,8 @@ class _Run:
             "train_config": asdict(cfg),
             "fit_config": self.fit.to_dict(),
         }
-        save_checkpoint(blob, self.out_dir / "last.pt")
-        save_checkpoint(blob, self.out_dir / f"epoch_{self.epoch:03d}.pt")
+        atomic_torch_save(blob, self.out_dir / "last.pt")
+        atomic_torch_save(blob, self.out_dir / f"epoch_{self.epoch:03d}.pt")
         snapshots = sorted(self.out_dir.glob("epoch_*.pt"))
         for old in snapshots[: max(len(snapshots) - cfg.keep_snapshots, 0)]:
             old.unlink()
@@ -345,7 +340,7 @@ class _Run:
                 "fit_config": self.fit.to_dict(),
                 "data": str(self.data),
             }
-            save_checkpoint(checkpoint_dict(self.net, meta), self.out_dir / WEIGHTS_NAME)
+            atomic_torch_save(checkpoint_dict(self.net, meta), self.out_dir / WEIGHTS_NAME)
 
 
 def train_sampler(

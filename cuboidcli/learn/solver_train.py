@@ -32,7 +32,7 @@ import torch
 from torch import Tensor
 
 from cuboidcli.geometry.kernels import cuboid_sq_distance
-from cuboidcli.io.atomic import atomic_write, atomic_write_json
+from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.solver_data import SyntheticBatch, SyntheticConfig, seeded_batch
 from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict, parameter_count
@@ -136,11 +136,6 @@ def evaluate_solver(solver: Callable, batch: SyntheticBatch) -> dict:
         "median_cm": dist_cm.median().item(),
         "seconds": seconds,
     }
-
-
-def save_checkpoint(blob: dict, path: str | Path) -> Path:
-    """``torch.save`` through a temporary file, so an interrupted run never leaves a truncated checkpoint."""
-    return atomic_write(path, lambda tmp: torch.save(blob, tmp))
 
 
 def _net_solver(net: SolverNet) -> Callable:
@@ -286,8 +281,8 @@ def _train(
         if not ctx.is_main:
             return
         blob = _train_state(net, opt, it, best, elapsed(), cfg, net_cfg, data_cfg, ctx.world_size)
-        save_checkpoint(blob, out_dir / f"step_{it:07d}.pt")
-        save_checkpoint(blob, out_dir / "last.pt")
+        atomic_torch_save(blob, out_dir / f"step_{it:07d}.pt")
+        atomic_torch_save(blob, out_dir / "last.pt")
         for old in sorted(out_dir.glob("step_*.pt"))[: -cfg.keep_snapshots]:
             old.unlink(missing_ok=True)
 
@@ -337,7 +332,7 @@ def _train(
                     "train_config": asdict(cfg),
                     "data_config": data_cfg.to_dict(),
                 }
-                save_checkpoint(checkpoint_dict(net, meta), out_dir / "best.pt")
+                atomic_torch_save(checkpoint_dict(net, meta), out_dir / "best.pt")
             log(
                 {
                     "event": "val",

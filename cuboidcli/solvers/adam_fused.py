@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from cuboidcli.fitting.fused import slab_occlusion
+from cuboidcli.fitting.fused import camera_local, slab_occlusion
 
 
 @njit(cache=True, inline="always")
@@ -247,9 +247,7 @@ def _oa_objective_and_grad(pts, p, R, dR, grad):
         grad[j] = 0.0
     a = p[6:9]
     t = p[0:3]
-    c0 = -(R[0, 0] * t[0] + R[1, 0] * t[1] + R[2, 0] * t[2])
-    c1 = -(R[0, 1] * t[0] + R[1, 1] * t[1] + R[2, 1] * t[2])
-    c2 = -(R[0, 2] * t[0] + R[1, 2] * t[1] + R[2, 2] * t[2])
+    c0, c1, c2 = camera_local(t[0], t[1], t[2], R)
     total = 0.0
     diff = np.zeros(3)
     loc = np.zeros(3)
