@@ -126,3 +126,43 @@ def test_learned_sampler_plugs_into_fit_depth(tmp_path, small_scene):
     assert all(g > info.theta for g in info.gains)
     again, _ = fit_depth(depth, camera, cfg, weights_dir=tmp_path)
     assert [c.center.tolist() for c in again] == [c.center.tolist() for c in cuboids]
+
+
+def test_unexplained_prior_starts_as_the_sequential_sampler(small_scene):
+    """With the prior, an untrained net samples (almost) like the sequential sampler: explained points get
+    ~prior_floor of the weight of unexplained ones, and every map is close to the sequential weights."""
+    depth, camera = small_scene
+    torch.manual_seed(0)
+    net = SamplerNet(SamplerNetConfig(width=16, blocks=1, upsample=2, prior="unexplained"))
+    base = _context(depth, camera)
+    n = base.points.shape[0]
+    state = torch.zeros(n)
+    state[: n // 2] = 1.0  # the first half explained, the rest not
+    state[n // 2 : n // 2 + 10] = -0.5  # occluded points count as unexplained
+    ctx = _context(depth, camera, state)
+    p, q = LearnedSampler(net).distributions(ctx)
+    seq, _ = make_sampler("sequential").distributions(ctx)
+    assert p.shape == (4, n)
+    assert torch.allclose(p.sum(1), torch.ones(4, dtype=torch.float64))
+    # all weight within a few per cent of the sequential sampler's (small random map-head init)
+    assert float((p - seq).abs().sum(1).max()) < 0.05
+    ratio = p[:, : n // 2].mean(1) / p[:, n // 2 :].mean(1)
+    assert bool(((ratio > 0.5e-3) & (ratio < 2e-3)).all())  # prior_floor = 1e-3
+    assert q.shape == (4,)
+
+
+def test_prior_free_maps_ignore_the_state():
+    torch.manual_seed(0)
+    net = SamplerNet(SamplerNetConfig(width=16, blocks=1, upsample=1, prior="unexplained")).eval()
+    depth, state, valid = _random_inputs()
+    out = net(depth, state, valid)
+    free_sum = out.log_p_free.exp().flatten(2).sum(-1)
+    assert torch.allclose(free_sum, torch.ones_like(free_sum), atol=1e-5)
+    plain = SamplerNet(SamplerNetConfig(width=16, blocks=1, upsample=1)).eval()
+    out_plain = plain(depth, state, valid)
+    assert torch.equal(out_plain.log_p, out_plain.log_p_free)  # prior "none": the same maps
+
+
+def test_unknown_prior_is_an_error():
+    with pytest.raises(ValueError, match="prior"):
+        SamplerNetConfig(prior="sequential")

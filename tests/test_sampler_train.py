@@ -75,6 +75,11 @@ def test_correlation_of_identical_and_disjoint_maps():
     half = torch.zeros(2, 50)
     half[0, :25], half[1, 25:] = 1 / 25, 1 / 25
     torch.testing.assert_close(correlation_matrix(half)[0, 1], torch.tensor(-1.0))
+    torch.testing.assert_close(correlation_loss(half), torch.tensor(-2.0))  # the paper rewards this
+    torch.testing.assert_close(correlation_loss(half, "positive"), torch.tensor(0.0))  # ours does not
+    torch.testing.assert_close(correlation_loss(same4, "positive"), torch.tensor(12.0))
+    with pytest.raises(ValueError, match="corr_mode"):
+        correlation_loss(p, "negative")
 
 
 def test_entropy_of_uniform_and_peaked_q():

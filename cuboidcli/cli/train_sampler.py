@@ -68,6 +68,13 @@ def train_sampler_cmd(
     ),
     grid_step: int = typer.Option(8, "--grid-step", help="Fitting points: every n-th pixel (8: 60x80)."),
     width: int = typer.Option(96, "--width", help="Channels of the network on the fitting grid."),
+    prior: str = typer.Option(
+        "unexplained", "--prior", help="'unexplained': maps on top of the sequential weights; 'none': plain."
+    ),
+    kappa_corr: float = typer.Option(1.0, "--kappa-corr", help="Weight of the map-correlation loss."),
+    corr_mode: str = typer.Option(
+        "positive", "--corr-mode", help="'positive': penalise positive correlations only; 'paper': the sum."
+    ),
     val_hypotheses: int = typer.Option(256, "--val-hypotheses", help="|H| when fitting the val frames."),
     val_frames: int | None = typer.Option(None, "--val-frames", help="Validate on at most this many frames."),
     workers: int = typer.Option(1, "--workers", "-j", help="Threads reading and preparing the frames."),
@@ -80,7 +87,7 @@ def train_sampler_cmd(
         None, "--max-minutes", help="Stop after the epoch during which this much time has passed."
     ),
 ) -> None:
-    """Train the sampling-weight network on DATA; the best weights go to OUT/sampler_v1.pt.
+    """Train the sampling-weight network on DATA; the best weights go to OUT/sampler_v2.pt.
 
     Use them with: cuboids fit ... --sampler learned --weights OUT
     """
@@ -103,6 +110,8 @@ def train_sampler_cmd(
             instances=instances,
             samples_k=samples_k,
             alpha=alpha,
+            kappa_corr=kappa_corr,
+            corr_mode=corr_mode,
             scenes_per_epoch=scenes_per_epoch,
             grid_step=grid_step,
             seed=seed,
@@ -113,7 +122,7 @@ def train_sampler_cmd(
             val_frames=val_frames,
             max_minutes=max_minutes,
         )
-        net_cfg = SamplerNetConfig(width=width)
+        net_cfg = SamplerNetConfig(width=width, prior=prior)
     except ValueError as e:
         fail(str(e))
     with user_errors():

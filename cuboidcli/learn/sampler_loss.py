@@ -62,6 +62,11 @@ class LossParams:
     """Clamp of the baseline-subtracted task loss (the REINFORCE weight), fractions of the points."""
     kappa_corr: float = 1.0
     """kappa_corr: weight of the map correlation loss."""
+    corr_mode: str = "paper"
+    """"paper": l_corr sums the correlation coefficients, so it keeps falling below 0 and rewards
+    anti-correlated maps. "positive": only positive coefficients count (0 once the maps are uncorrelated
+    or anti-correlated): it still prevents mode collapse, without rewarding the ripple patterns that
+    minimise the paper's sum (seen in sampler_v1, docs/sampler_maps_v1.png)."""
     kappa_entropy: float = 1.0
     """kappa_entropy: weight of the negative entropy of q."""
     kappa_im: float = 0.01
@@ -113,10 +118,17 @@ def correlation_matrix(p: Tensor, eps: float = 1e-12) -> Tensor:
     return cov / (std[:, None] * std[None, :])
 
 
-def correlation_loss(p: Tensor) -> Tensor:
-    """l_corr: sum over ordered pairs i != j of corr(p_i, p_j). Q identical maps give Q (Q - 1)."""
+CORR_MODES = ("paper", "positive")
+
+
+def correlation_loss(p: Tensor, mode: str = "paper") -> Tensor:
+    """l_corr: sum over ordered pairs i != j of corr(p_i, p_j) (``mode="paper"``) or of max(corr, 0)
+    (``"positive"``). Q identical maps give Q (Q - 1) either way."""
+    if mode not in CORR_MODES:
+        raise ValueError(f"corr_mode must be one of {CORR_MODES}, got {mode!r}")
     c = correlation_matrix(p)
-    return c.sum() - c.diagonal().sum()
+    off = c - torch.diag_embed(c.diagonal())
+    return (off.clamp_min(0.0) if mode == "positive" else off).sum()
 
 
 def entropy(q: Tensor) -> Tensor:
@@ -170,9 +182,11 @@ def instance_loss(
     solver: CuboidSolver,
     lp: LossParams,
     generator: torch.Generator,
+    log_p_corr: Tensor | None = None,
 ) -> InstanceResult:
     """The loss of one instance (see the module docstring). log_p (Q, N), log_q (Q,), points (N, 3) m,
-    state (N,) float64."""
+    state (N,) float64. ``log_p_corr`` (Q, N): the maps the correlation loss looks at (default log_p;
+    the sampler passes its maps without the shared prior)."""
     n = points.shape[0]
     # f_OAI in float32 is ~3x faster than float64 on the CPU; values are O(1) and the sums over N points
     # are taken in float64 after the combination with the state.
@@ -202,7 +216,8 @@ def instance_loss(
     exp_loss = torch.stack(exp_losses)  # (K,)
     advantage = (exp_loss - exp_loss.mean()).clamp(-lp.loss_clamp, lp.loss_clamp)
     policy = (advantage.to(log_p.dtype) * torch.stack(log_probs)).mean()
-    l_corr = correlation_loss(p)
+    p_corr = p if log_p_corr is None else log_p_corr.exp()
+    l_corr = correlation_loss(p_corr, lp.corr_mode)
     l_ent = entropy_loss(q)
     l_im = inlier_masking_loss(p, state)
     loss = policy + lp.kappa_corr * l_corr + lp.kappa_entropy * l_ent + lp.kappa_im * l_im

@@ -31,9 +31,13 @@ from torch import Tensor, nn
 from cuboidcli.fitting.sampling import SamplingContext
 
 #: Versioned file name of the sampler weights inside a weights folder.
-WEIGHTS_NAME = "sampler_v1.pt"
+WEIGHTS_NAME = "sampler_v2.pt"
 #: The shipped weights, relative to the repository root.
 DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / WEIGHTS_NAME
+
+
+#: Sampling priors the network's maps can be built on (see SamplerNetConfig.prior).
+PRIORS = ("none", "unexplained")
 
 
 @dataclass(frozen=True)
@@ -56,12 +60,24 @@ class SamplerNetConfig:
     state_clip: float = 1.0
     """The state channel is clipped to [-state_clip, state_clip]: the leaky occlusion penalty is unbounded
     and a few strongly occluded points would otherwise dominate the instance statistics."""
+    prior: str = "none"
+    """"none": the maps are softmax(logits) (the paper). "unexplained": the maps are
+    softmax(logits + log max(1 - max(s, 0), prior_floor)), i.e. the network predicts a log-weight
+    correction on top of the sequential sampler's weights (points the selected cuboids explain are
+    sampled less). With the map head initialised near zero an untrained net samples like the sequential
+    sampler, and training starts from that instead of from uniform sampling."""
+    prior_floor: float = 1e-3
+    """Smallest prior weight: fully explained points keep this much (times exp(logit)) of a weight."""
 
     def __post_init__(self) -> None:
         if self.upsample < 1 or self.upsample & (self.upsample - 1):
             raise ValueError(f"upsample must be a power of two, got {self.upsample}")
         if self.maps < 1:
             raise ValueError(f"maps (Q) must be at least 1, got {self.maps}")
+        if self.prior not in PRIORS:
+            raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
+        if not 0.0 < self.prior_floor <= 1.0:
+            raise ValueError(f"prior_floor must be in (0, 1], got {self.prior_floor}")
 
     def to_dict(self) -> dict:
         return asdict(self)
@@ -112,13 +128,16 @@ class SamplerOutput:
 
     ``log_p`` (B, Q, Hs, Ws): log sampling weights, -inf at invalid cells; ``p`` (B, Q, Hs, Ws): the
     weights, each map summing to 1 over the valid cells of its frame; ``log_q`` (B, Q) and ``q`` (B, Q):
-    selection weights.
+    selection weights. ``log_p_free`` (B, Q, Hs, Ws): the maps without the sampling prior (the same as
+    ``log_p`` for ``prior="none"``); the correlation regulariser looks at these, since the prior is a
+    factor all maps share and no training can decorrelate.
     """
 
     log_p: Tensor
     p: Tensor
     log_q: Tensor
     q: Tensor
+    log_p_free: Tensor
 
 
 class SamplerNet(nn.Module):
@@ -137,6 +156,10 @@ class SamplerNet(nn.Module):
         self.penultimate = nn.Sequential(nn.Conv2d(cfg.width, cfg.width, 1), nn.ReLU(inplace=True))
         self.map_head = nn.Conv2d(cfg.width, cfg.maps, 1)
         self.q_head = nn.Linear(cfg.width, cfg.maps)
+        if cfg.prior != "none":
+            # start close to the prior; small distinct weights break the symmetry between the Q maps
+            nn.init.normal_(self.map_head.weight, std=1e-2)
+            nn.init.zeros_(self.map_head.bias)
 
     def encode(self, depth_m: Tensor, state: Tensor, valid: Tensor) -> Tensor:
         """The normalised 2-channel input at the network's resolution: (B, 2, up*Hs, up*Ws)."""
@@ -153,11 +176,16 @@ class SamplerNet(nn.Module):
         if feat.shape[-2:] != depth_m.shape[-2:]:
             raise ValueError(f"grid {tuple(depth_m.shape[-2:])} does not survive the stride-2 layers")
         logits = self.map_head(feat)  # (B, Q, Hs, Ws)
-        b, q = logits.shape[:2]
-        flat = logits.flatten(2).masked_fill(~valid.flatten(1)[:, None, :], float("-inf"))
-        log_p = torch.log_softmax(flat, -1).view_as(logits)
+        invalid = ~valid.flatten(1)[:, None, :]
+        flat = logits.flatten(2).masked_fill(invalid, float("-inf"))
+        log_p_free = torch.log_softmax(flat, -1).view_as(logits)
+        log_p = log_p_free
+        if self.config.prior == "unexplained":
+            unexplained = (1.0 - state.clamp(0.0, 1.0)).clamp_min(self.config.prior_floor)
+            flat = flat + torch.log(unexplained).flatten(1)[:, None, :]
+            log_p = torch.log_softmax(flat, -1).view_as(logits)
         log_q = torch.log_softmax(self.q_head(feat.mean((-2, -1))), -1)  # global average pooling + FC
-        return SamplerOutput(log_p=log_p, p=log_p.exp(), log_q=log_q, q=log_q.exp())
+        return SamplerOutput(log_p=log_p, p=log_p.exp(), log_q=log_q, q=log_q.exp(), log_p_free=log_p_free)
 
 
 def grid_inputs(ctx: SamplingContext) -> tuple[Tensor, Tensor, Tensor]:
@@ -196,8 +224,8 @@ def net_from_checkpoint(ckpt: dict) -> SamplerNet:
 
 
 def weights_path(weights_dir: str | os.PathLike | None) -> Path:
-    """Where the sampler weights are: a .pt file as given, ``<folder>/sampler_v1.pt``, or the shipped
-    ``models/sampler_v1.pt`` (``$CUBOIDS_SAMPLER_WEIGHTS`` overrides it) when None."""
+    """Where the sampler weights are: a .pt file as given, ``<folder>/sampler_v2.pt``, or the shipped
+    ``models/sampler_v2.pt`` (``$CUBOIDS_SAMPLER_WEIGHTS`` overrides it) when None."""
     if weights_dir is None:
         return Path(os.environ.get("CUBOIDS_SAMPLER_WEIGHTS", DEFAULT_WEIGHTS))
     path = Path(weights_dir)

@@ -15,7 +15,7 @@ cuboids is used instead.
 
 Files in ``out_dir``: ``config.json`` (resolved configs), ``log.jsonl`` (one JSON record per step,
 validation and epoch), ``last.pt`` and ``epoch_XXX.pt`` (training state: weights, optimizer, RNG states,
-epoch; the last ``keep_snapshots`` are kept) and ``sampler_v1.pt`` (weights only, the best validation so
+epoch; the last ``keep_snapshots`` are kept) and ``sampler_v2.pt`` (weights only, the best validation so
 far, in the format :meth:`cuboidcli.learn.sampler_net.LearnedSampler.load` reads, so ``--weights out_dir``
 uses it). ``resume`` continues a run exactly: the same frames, draws and losses as without interruption.
 This module prints nothing: progress goes to the ``on_event`` callback.
@@ -40,7 +40,7 @@ from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
-from cuboidcli.learn.sampler_loss import LossParams, instance_loss, occlusion_threshold
+from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, occlusion_threshold
 from cuboidcli.learn.sampler_net import (
     WEIGHTS_NAME,
     LearnedSampler,
@@ -77,6 +77,8 @@ class SamplerTrainConfig:
     alpha: float = 10.0
     """alpha: selection softmax scale on gains in fractions of the points."""
     kappa_corr: float = 1.0
+    corr_mode: str = "positive"
+    """l_corr variant (see sampler_loss.LossParams.corr_mode); "paper" is the paper's plain sum."""
     kappa_entropy: float = 1.0
     kappa_im: float = 0.01
     loss_clamp: float = 0.3
@@ -106,6 +108,8 @@ class SamplerTrainConfig:
     """Stop after the epoch during which this much wall time (in this process) has passed."""
 
     def __post_init__(self) -> None:
+        if self.corr_mode not in CORR_MODES:
+            raise ValueError(f"corr_mode must be one of {CORR_MODES}, got {self.corr_mode!r}")
         if self.samples_k < 2:
             raise ValueError("samples_k (K) must be at least 2: the baseline of K = 1 cancels the signal")
         for name in ("epochs", "batch", "hypotheses", "instances", "grid_step", "threads", "workers"):
@@ -123,6 +127,7 @@ class SamplerTrainConfig:
             tau_c_sq_m2=occlusion_threshold(epoch, self.epochs, fit.tau_sq_m2, self.tau_c_start_sq_m2),
             loss_clamp=self.loss_clamp,
             kappa_corr=self.kappa_corr,
+            corr_mode=self.corr_mode,
             kappa_entropy=self.kappa_entropy,
             kappa_im=self.kappa_im,
         )
@@ -149,8 +154,10 @@ def train_scene(
         ctx = SamplingContext(pts, prep.grid_index, prep.grid_shape, prep.depth_grid.cpu(), state.float(), m)
         depth, state_grid, valid = (t.to(device) for t in grid_inputs(ctx))
         out = net(depth, state_grid, valid)
-        log_p = out.log_p[0].flatten(1)[:, prep.grid_index.to(device)]  # (Q, N) at the fitting points
-        res = instance_loss(log_p, out.log_q[0], pts, state, solver, lp, generator)
+        at_points = prep.grid_index.to(device)
+        log_p = out.log_p[0].flatten(1)[:, at_points]  # (Q, N) at the fitting points
+        log_p_free = out.log_p_free[0].flatten(1)[:, at_points]
+        res = instance_loss(log_p, out.log_q[0], pts, state, solver, lp, generator, log_p_corr=log_p_free)
         (res.loss * scale).backward()
         records.append(
             {
@@ -312,7 +319,7 @@ class _Run:
         return improved, record
 
     def save(self, improved: bool, val_record: dict) -> None:
-        """Training state to last.pt and epoch_XXX.pt; the weights to sampler_v1.pt if they are the best."""
+        """Training state to last.pt and epoch_XXX.pt; the weights to sampler_v2.pt if they are the best."""
         cfg = self.cfg
         blob = {
             "kind": STATE_KIND,

@@ -80,12 +80,18 @@ class EncoderLayer(nn.Module):
     def forward(self, x: Tensor) -> Tensor:
         b, c, d = x.shape
         dh = d // self.heads
-        # (B, C, 3d) -> three (B, heads, C, dh)
-        q, k, v = self.qkv(self.norm1(x)).reshape(b, c, 3, self.heads, dh).permute(2, 0, 3, 1, 4).unbind(0)
-        s = (q @ k.transpose(-1, -2)) * dh**-0.5  # (B, heads, C, C)
-        w = (s - s.amax(-1, keepdim=True)).exp()
-        w = w / w.sum(-1, keepdim=True)
-        att = (w @ v).transpose(1, 2).reshape(b, c, d)
+        qkv = self.qkv(self.norm1(x))  # (B, C, 3d): [q heads | k heads | v heads]
+        heads = []
+        for h in range(self.heads):
+            # per-head slices feed batched matmuls directly: no permute/contiguous copies of (B, C, 3d),
+            # which took a third of the time with the usual (B, heads, C, dh) layout at C = 6
+            q = qkv[..., h * dh : (h + 1) * dh]
+            k = qkv[..., d + h * dh : d + (h + 1) * dh]
+            v = qkv[..., 2 * d + h * dh : 2 * d + (h + 1) * dh]
+            s = torch.bmm(q, k.transpose(1, 2)) * dh**-0.5  # (B, C, C)
+            w = (s - s.amax(-1, keepdim=True)).exp()
+            heads.append(torch.bmm(w / w.sum(-1, keepdim=True), v))
+        att = heads[0] if self.heads == 1 else torch.cat(heads, -1)
         x = x + self.proj(att)
         # relu in place: one allocation fewer, and ReLU's backward only needs its output
         return x + self.ff2(torch.relu_(self.ff1(self.norm2(x))))
