@@ -1,4 +1,5 @@
-"""Multi-process pre-training of the neural solver: ``torchrun`` with 2 CPU processes over gloo."""
+"""Multi-process training of the neural solver and the sampling-weight net: ``torchrun``, 2 CPU processes
+over gloo."""
 
 from __future__ import annotations
 
@@ -7,11 +8,13 @@ import os
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 import torch
 import torch.distributed as dist
 
 from cuboidcli.learn.distributed import state_sha256
+from tests.conftest import simple_room
 
 pytestmark = pytest.mark.skipif(
     not dist.is_available() or not dist.is_gloo_available(),
@@ -50,3 +53,70 @@ def test_torchrun_two_processes_train_one_model(tmp_path):
     assert len(hashes) == 2 and hashes[0] == hashes[1]
     last = torch.load(out / "last.pt", weights_only=True)
     assert last["world_size"] == 2 and state_sha256(last["state_dict"]) == hashes[0]
+
+
+@pytest.fixture(scope="module")
+def sampler_dataset(tmp_path_factory):
+    """As tests/test_sampler_train.py's tiny_dataset: simple_room from 4 shifted 160x120 cameras, 3 train,
+    1 val."""
+    import cv2
+
+    from cuboidcli.camera import Camera
+    from cuboidcli.cuboid import Cuboid
+    from cuboidcli.io.dataset import write_cameras
+    from cuboidcli.synth.render import render_boxes
+
+    camera = Camera.preset("nyu").scaled(0.25)
+    root = tmp_path_factory.mktemp("ddp_sampler_data")
+    (root / "depth").mkdir()
+    names = [f"{i:06d}" for i in range(4)]
+    for i, name in enumerate(names):
+        shift = np.array([0.1 * i - 0.15, 0.0, 0.05 * i])
+        boxes = [Cuboid(c.center + shift, c.half_size, c.rotation) for c in simple_room()]
+        depth, _ = render_boxes(boxes, camera)
+        cv2.imwrite(str(root / "depth" / f"{name}.png"), np.round(depth * 1000).astype(np.uint16))
+    write_cameras(root, {name: camera for name in names})
+    (root / "splits.json").write_text(json.dumps({"train": names[:3], "val": names[3:]}))
+    return root
+
+
+TINY_SAMPLER_RUN = ["--width", "16", "--blocks", "1", "--upsample", "2", "--grid-step", "4"]
+TINY_SAMPLER_RUN += ["--epochs", "1", "--batch", "2", "--instances", "1", "--hypotheses", "8"]
+TINY_SAMPLER_RUN += ["--val-hypotheses", "16", "--val-frames", "1", "--backend", "gloo"]
+
+
+def test_torchrun_two_processes_train_one_sampler(tmp_path, sampler_dataset):
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2"]
+    cmd += ["-m", "cuboidcli.cli.main", "train", "sampler", str(sampler_dataset), *TINY_SAMPLER_RUN]
+    cmd += ["--out", str(out)]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    env.pop("CUBOIDS_DIST_BACKEND", None)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+    # One set of outputs, written by rank 0 alone; rank 0 alone reports (on stderr).
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["config.json", "epoch_001.pt", "last.pt", "log.jsonl", "sampler_v2.pt"]
+    assert proc.stderr.count("sampler net:") == 1 and proc.stderr.count("done: 1 epochs") == 1
+    records = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert [r["event"] for r in records].count("start") == 1
+    # The global batch stays 2 scenes: 3 training scenes make 2 steps (the second has none on rank 1).
+    steps = [r for r in records if r["event"] == "step"]
+    assert [len(r["scenes"]) for r in steps] == [2, 1]
+    vals = [r for r in records if r["event"] == "val"]
+    assert [bool(r.get("initial")) for r in vals] == [True, False] and vals[-1]["best"]
+    config = json.loads((out / "config.json").read_text())
+    assert config["distributed"] == {"world_size": 2, "backend": "gloo"}
+
+    # Each rank hashed its own final weights: the replicas are bit-identical and rank 0 saved them.
+    (end,) = [r for r in records if r["event"] == "end"]
+    hashes = end["param_sha256"]
+    assert end["world_size"] == 2 and len(hashes) == 2 and hashes[0] == hashes[1]
+    last = torch.load(out / "last.pt", weights_only=True)
+    assert last["world_size"] == 2 and state_sha256(last["state_dict"]) == hashes[0]
+    best = torch.load(out / "sampler_v2.pt", weights_only=True)
+    assert state_sha256(best["state_dict"]) == hashes[0]
+    # Every rank's draw generator is in the checkpoint, and the ranks drew differently.
+    assert len(last["draw_rngs"]) == 2 and not torch.equal(last["draw_rngs"][0], last["draw_rngs"][1])
+    assert torch.equal(last["draw_rng"], last["draw_rngs"][0])

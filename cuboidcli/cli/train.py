@@ -150,3 +150,9 @@ def solver(
 from cuboidcli.cli import train_sampler as _train_sampler  # noqa: E402
 
 _train_sampler.register(train_app)
+from cuboidcli.cli import train_finetune as _train_finetune  # noqa: E402
+
+_train_finetune.register(train_app)
+from cuboidcli.cli import train_depth as _train_depth  # noqa: E402
+
+_train_depth.register(train_app)

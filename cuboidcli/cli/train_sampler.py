@@ -58,7 +58,7 @@ def train_sampler_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
     epochs: int = typer.Option(25, "--epochs", help="N_e: epochs (also the length of the tau_c schedule)."),
     lr: float = typer.Option(1e-4, "--lr", help="Adam learning rate (the paper: 1e-5 on a GPU)."),
-    batch: int = typer.Option(2, "--batch", help="B: scenes per optimizer step."),
+    batch: int = typer.Option(2, "--batch", help="B: scenes per optimizer step (over all processes)."),
     hypotheses: int = typer.Option(32, "--hypotheses", help="|H|: hypotheses per sampled set."),
     instances: int = typer.Option(8, "--instances", help="|M|: sequential instances per scene."),
     samples_k: int = typer.Option(2, "--samples-k", help="K: hypothesis sets per instance (>= 2)."),
@@ -68,6 +68,10 @@ def train_sampler_cmd(
     ),
     grid_step: int = typer.Option(8, "--grid-step", help="Fitting points: every n-th pixel (8: 60x80)."),
     width: int = typer.Option(96, "--width", help="Channels of the network on the fitting grid."),
+    blocks: int = typer.Option(4, "--blocks", help="Residual blocks of the network on the fitting grid."),
+    upsample: int = typer.Option(
+        4, "--upsample", help="Input resolution: the fitting grid times this power of two (8: the paper)."
+    ),
     prior: str = typer.Option(
         "unexplained", "--prior", help="'unexplained': maps on top of the sequential weights; 'none': plain."
     ),
@@ -86,10 +90,24 @@ def train_sampler_cmd(
     max_minutes: float | None = typer.Option(
         None, "--max-minutes", help="Stop after the epoch during which this much time has passed."
     ),
+    backend: str | None = typer.Option(
+        None,
+        "--backend",
+        help="torch.distributed backend under torchrun (gloo, nccl); default nccl on CUDA, gloo on CPU.",
+    ),
 ) -> None:
     """Train the sampling-weight network on DATA; the best weights go to OUT/sampler_v2.pt.
 
     Use them with: cuboids fit ... --sampler learned --weights OUT
+
+    Multi-process (data parallel, one process per GPU or per group of CPU cores), e.g. 2 processes:
+
+        torchrun --standalone --nproc_per_node 2 -m cuboidcli.cli.main train sampler DATA --out OUT
+
+    The --batch scenes of a step are split over the processes (use a multiple of their number), each
+    process drawing its own hypotheses, and the gradients averaged; the val frames are split too.
+    Process 0 alone prints and writes OUT, which must be shared for --resume; resuming with the same
+    number of processes continues the run exactly.
     """
     from cuboidcli.learn.sampler_net import SamplerNetConfig
     from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler
@@ -100,6 +118,8 @@ def train_sampler_cmd(
         fail(f"--resume {resume}: no such checkpoint (give OUT/last.pt)")
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a folder")
+    if blocks < 0:
+        fail(f"--blocks must be at least 0 (got {blocks})")
     device = resolve_device(device)
     try:
         cfg = SamplerTrainConfig(
@@ -122,12 +142,14 @@ def train_sampler_cmd(
             val_frames=val_frames,
             max_minutes=max_minutes,
         )
-        net_cfg = SamplerNetConfig(width=width, prior=prior)
+        net_cfg = SamplerNetConfig(width=width, blocks=blocks, upsample=upsample, prior=prior)
     except ValueError as e:
         fail(str(e))
     with user_errors():
         try:
-            train_sampler(cfg, data, out, net_cfg=net_cfg, resume=resume, on_event=_print_event)
+            train_sampler(
+                cfg, data, out, net_cfg=net_cfg, resume=resume, on_event=_print_event, backend=backend
+            )
         except ValueError as e:
             fail(str(e))
         except KeyboardInterrupt:

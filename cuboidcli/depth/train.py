@@ -16,7 +16,8 @@ sees), and colour jitter (brightness, contrast, saturation).
 Files in ``out_dir``: ``config.json``, ``log.jsonl`` (one record per logged step and per validation),
 ``last.pt`` (training state: weights, optimizer, generator state, epoch; resume with it) and ``best.pt``
 (weights-only checkpoint with the lowest validation AbsRel). The library prints nothing; progress goes
-to ``on_event``. ``python -m cuboidcli.depth.train`` is a stop-gap entry point until the CLI has one.
+to ``on_event``. The command line is ``cuboids train depth`` (:mod:`cuboidcli.cli.train_depth`);
+``python -m cuboidcli.depth.train`` remains as the older entry point with the same defaults.
 """
 
 from __future__ import annotations
@@ -24,8 +25,9 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import pickle
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Collection
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
@@ -74,6 +76,44 @@ class DepthTrainConfig:
     max_minutes: float | None = None
     """Budget of training wall time (summed over resumed sessions): the cosine decay then follows whichever
     budget runs out faster, epochs or time, and the run ends with a validation when either is spent."""
+    device: str = "cpu"
+    """torch device of the forward and backward passes (augmentation stays on the CPU)."""
+
+    def __post_init__(self) -> None:
+        for name in ("epochs", "batch", "threads", "log_every"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        for name in ("lr", "grad_clip"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        for name in ("weight_decay", "warmup", "l1_weight", "final_lr_ratio"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must not be negative, got {getattr(self, name)}")
+        if not 0 <= self.silog_lambda <= 1:
+            raise ValueError(f"silog_lambda must lie in [0, 1], got {self.silog_lambda}")
+        if not 0 < self.min_crop <= 1:
+            raise ValueError(f"min_crop must lie in (0, 1] (1 = no crops), got {self.min_crop}")
+        if not 0 <= self.jitter < 1:
+            raise ValueError(f"jitter must lie in [0, 1), got {self.jitter}")
+        if self.max_minutes is not None and not self.max_minutes > 0:
+            raise ValueError(f"max_minutes must be positive, got {self.max_minutes}")
+        if self.device != "cpu" and not self.device.startswith("cuda"):
+            raise ValueError(f"device must be cpu or cuda[:N], got {self.device!r}")
+
+
+RESUME_OVERRIDES = ("threads", "max_minutes", "log_every", "device")
+"""Fields of the caller's config that replace the checkpoint's when resuming, unless told otherwise."""
+
+
+def load_train_state(path: str | Path) -> dict:
+    """The training state of a ``last.pt``; ValueError when ``path`` holds something else."""
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+    except (RuntimeError, EOFError, pickle.UnpicklingError) as e:
+        raise ValueError(f"cannot read {path} as a training checkpoint: {e}") from e
+    if not isinstance(state, dict) or state.get("kind") != "depth-train-state":
+        raise ValueError(f"{path} is not a depth training checkpoint (use last.pt)")
+    return state
 
 
 def focal_at_input(camera, cfg: DepthNetConfig) -> float:
@@ -166,11 +206,14 @@ def train_depth(
     net_cfg: DepthNetConfig | None = None,
     resume: str | Path | None = None,
     on_event: Callable[[dict], None] | None = None,
+    resume_overrides: Collection[str] = RESUME_OVERRIDES,
 ) -> dict:
     """Train (or resume) on ``data``'s train split, validating on its val split after every epoch.
 
     The net's canonical focal length is that of the first training frame at the input size. When
-    resuming, schedule and net come from the checkpoint; ``threads`` and ``max_minutes`` from ``cfg``.
+    resuming, schedule and net come from the checkpoint except the fields of ``cfg`` named in
+    ``resume_overrides`` (by default ``threads``, ``max_minutes``, ``log_every`` and ``device``; add
+    ``epochs`` to extend a finished run, which also stretches the cosine decay).
     Returns the final record (epoch, best validation AbsRel, paths).
     """
     cfg = cfg or DepthTrainConfig()
@@ -179,21 +222,31 @@ def train_depth(
     emit = on_event or (lambda record: None)
     state = None
     if resume is not None:
-        state = torch.load(resume, map_location="cpu", weights_only=True)
-        if not isinstance(state, dict) or state.get("kind") != "depth-train-state":
-            raise ValueError(f"{resume} is not a depth training checkpoint (use last.pt)")
-        keep = {k: getattr(cfg, k) for k in ("threads", "max_minutes", "log_every")}
+        state = load_train_state(resume)
+        keep = {k: getattr(cfg, k) for k in resume_overrides}
         cfg = replace(DepthTrainConfig(**state["train_config"]), **keep)
         net_cfg = DepthNetConfig.from_dict(state["config"])
     torch.set_num_threads(cfg.threads)
     train_frames, val_frames = list_frames(data, "train"), list_frames(data, "val")
+    if not train_frames:
+        raise ValueError(f"{data}'s train split is empty")
+    if len(train_frames) < cfg.batch:
+        raise ValueError(
+            f"batch {cfg.batch} is larger than the {len(train_frames)} frames of {data}'s train split"
+        )
+    if not val_frames:
+        raise ValueError(f"{data}'s val split is empty; validation picks best.pt")
+    no_rgb = [f.name for f in val_frames if f.rgb_path is None]
+    if no_rgb:
+        raise ValueError(f"val frame {no_rgb[0]} has no RGB image; the depth net trains on RGB-D frames")
+    device = torch.device(cfg.device)
     net_cfg = net_cfg or DepthNetConfig()
     if state is None:
         net_cfg = replace(net_cfg, canonical_focal_px=focal_at_input(train_frames[0].camera, net_cfg))
     rgb_all, depth_all = load_split(train_frames, net_cfg)
 
     torch.manual_seed(cfg.seed)
-    net = DepthNet(net_cfg)
+    net = DepthNet(net_cfg).to(device)
     opt = torch.optim.AdamW(net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     gen = torch.Generator().manual_seed(cfg.seed)
     epoch, step, best, spent_s = 0, 0, math.inf, 0.0
@@ -225,15 +278,28 @@ def train_depth(
     def time_fraction() -> float:
         return 0.0 if cfg.max_minutes is None else elapsed() / (60.0 * cfg.max_minutes)
 
-    emit({"event": "start", "epoch": epoch, "epochs": cfg.epochs, "parameters": n_params})
+    emit(
+        {
+            "event": "start",
+            "epoch": epoch,
+            "epochs": cfg.epochs,
+            "parameters": n_params,
+            "batch": cfg.batch,
+            "steps_per_epoch": steps_per_epoch,
+            "train_frames": len(train_frames),
+            "val_frames": len(val_frames),
+            "device": str(device),
+        }
+    )
     timed_out = False
     while epoch < cfg.epochs and not timed_out:
         net.train()
         order = torch.randperm(len(train_frames), generator=gen)
-        window_loss, window_n = 0.0, 0
+        window_loss, window_n, window_t0 = 0.0, 0, time.perf_counter()
         for k in range(steps_per_epoch):
             idx = order[k * cfg.batch : (k + 1) * cfg.batch]
             x, target = augment(rgb_all[idx].float() / 255.0, depth_all[idx], cfg, gen)
+            x, target = x.to(device), target.to(device)
             for group in opt.param_groups:
                 group["lr"] = lr = lr_at(step, total_steps, cfg, time_fraction())
             loss = depth_loss(net(net.normalise(x)), target, cfg)
@@ -252,15 +318,16 @@ def train_depth(
                         "loss": window_loss / window_n,
                         "lr": lr,
                         "grad_norm": float(grad_norm),
+                        "images_per_s": window_n * cfg.batch / (time.perf_counter() - window_t0),
                         "elapsed_s": elapsed(),
                     }
                 )
-                window_loss, window_n = 0.0, 0
+                window_loss, window_n, window_t0 = 0.0, 0, time.perf_counter()
             if time_fraction() >= 1.0:
                 timed_out = True
                 break
         epoch += 1
-        val = evaluate_frames(BuiltinDepthEstimator(net=net), val_frames)["mean"]
+        val = evaluate_frames(BuiltinDepthEstimator(net=net, device=device), val_frames)["mean"]
         improved = val["abs_rel"] < best
         if improved:
             best = val["abs_rel"]
@@ -303,7 +370,8 @@ def train_depth(
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m cuboidcli.depth.train DATA --out DIR [...]``: a stop-gap until ``cuboids train depth``."""
+    """``python -m cuboidcli.depth.train DATA --out DIR [...]``: the older entry point; ``cuboids train
+    depth`` has the same options and more (device, log interval, readable progress)."""
     p = argparse.ArgumentParser(description="Train the built-in depth network on an RGB-D dataset folder.")
     p.add_argument("data", help="dataset folder (layout of 'cuboids synth', with splits.json)")
     p.add_argument("--out", required=True, help="folder for logs and checkpoints")

@@ -5,17 +5,18 @@
 of one, everything here degrades to a plain single process: no process group, no collectives, so a
 single-process run is exactly what it was before multi-process support existed.
 
-The training loop asks four things of this module: who am I (:class:`DistContext`), make every rank see
-the same value (:meth:`DistContext.broadcast_float`), what is the mean over the ranks
-(:meth:`DistContext.mean_float`), and are the replicas still identical
-(:func:`state_sha256` with :meth:`DistContext.gather`).
+The training loops ask these things of this module: who am I (:class:`DistContext`), make every rank
+see the same value (:meth:`DistContext.broadcast_float`), what is the mean over the ranks
+(:meth:`DistContext.mean_float`), sum the gradients over the ranks when the loop does it by hand instead
+of through DistributedDataParallel (:meth:`DistContext.sum_gradients`), and are the replicas still
+identical (:func:`state_sha256` with :meth:`DistContext.gather`).
 """
 
 from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -88,6 +89,33 @@ class DistContext:
     def barrier(self) -> None:
         if self.active:
             dist.barrier()
+
+    def sum_gradients(self, params: Iterable[torch.Tensor]) -> None:
+        """Replace every parameter's ``.grad`` by its sum over the ranks, on every rank (one all-reduce per
+        dtype): the manual counterpart of DistributedDataParallel's hook, for loops that call the model
+        several times per step. A parameter that has a gradient on some rank but not on this one counts
+        as zeros here; one without a gradient on every rank keeps ``None`` (the optimizer skips it, as it
+        would in a single process). The reduced values are bit-identical on all ranks."""
+        if not self.active:
+            return
+        params = [p for p in params if p.requires_grad]
+        if not params:
+            return
+        has = torch.tensor([p.grad is not None for p in params], dtype=torch.int32, device=params[0].device)
+        dist.all_reduce(has)
+        used = [p for p, n in zip(params, has.tolist(), strict=True) if n > 0]
+        for p in used:
+            if p.grad is None:
+                p.grad = torch.zeros_like(p)
+        for dtype in sorted({p.grad.dtype for p in used}, key=str):
+            group = [p for p in used if p.grad.dtype == dtype]
+            flat = torch.cat([p.grad.reshape(-1) for p in group])
+            dist.all_reduce(flat)
+            offset = 0
+            for p in group:
+                n = p.grad.numel()
+                p.grad.copy_(flat[offset : offset + n].view_as(p.grad))
+                offset += n
 
 
 def default_backend(device: str) -> str:

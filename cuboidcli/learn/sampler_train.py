@@ -19,6 +19,25 @@ epoch; the last ``keep_snapshots`` are kept) and ``sampler_v2.pt`` (weights only
 far, in the format :meth:`cuboidcli.learn.sampler_net.LearnedSampler.load` reads, so ``--weights out_dir``
 uses it). ``resume`` continues a run exactly: the same frames, draws and losses as without interruption.
 This module prints nothing: progress goes to the ``on_event`` callback.
+
+Multi-process (``torchrun``, see :mod:`cuboidcli.learn.distributed`): every rank holds a replica of the
+net and prepares every training scene. The B scenes of a step are split over the W ranks, rank r taking
+the step's scenes r, r + W, ... (a rank may get none, e.g. in a last partial batch), so ``batch`` stays
+the global number of scenes per step and the epoch has as many steps as in one process; use a ``batch``
+that is a multiple of W to keep every rank busy. Each rank scales its losses by 1 / (B |M|) of the global
+batch, and the gradients are summed over the ranks by one all-reduce per step before the Adam step
+(:meth:`~cuboidcli.learn.distributed.DistContext.sum_gradients`, not DistributedDataParallel: the net
+runs |M| times per scene, each with its own backward), so every rank steps with the mean gradient of the
+global batch and the replicas stay bit-identical. Rank r draws its hypotheses from its own generator
+(:func:`draw_seed`; rank 0 keeps the single-process stream), so a run is reproducible for a given seed
+and number of processes but differs from a single-process run. The val frames are split over the ranks
+the same way and their per-frame results gathered in frame order, so the validation numbers equal a
+single process's (fitting is seeded per frame) and every rank takes the same best-weights decision.
+Rank 0 alone writes files and calls ``on_event``; the ``max_minutes`` decision is taken on its clock and
+broadcast, so all ranks stop after the same epoch. Checkpoints hold every rank's draw generator state
+(``draw_rngs``): resuming with the same number of processes continues the run exactly; with another
+number, the ranks the checkpoint has a state for restore it and the others start a fresh stream
+(:func:`draw_seed` of their rank and the epoch), a valid continuation but not the uninterrupted run.
 """
 
 from __future__ import annotations
@@ -39,6 +58,7 @@ from cuboidcli.fitting.sampling import SamplingContext
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.dataset import Frame
+from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
 from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, occlusion_threshold
 from cuboidcli.learn.sampler_net import (
@@ -54,6 +74,17 @@ from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver
 
 STATE_KIND = "sampler-train-state"
+#: Rank r's draw seed is offset by r * RANK_SEED_STRIDE and a rank new to a resumed run's by the epoch times
+#: EPOCH_SEED_STRIDE: the streams cannot meet as long as 0 <= seed < 2^32, epochs < 2^16 and ranks < 2^15.
+RANK_SEED_STRIDE = 2**48
+EPOCH_SEED_STRIDE = 2**32
+
+
+def draw_seed(seed: int, rank: int = 0, epoch: int = 0) -> int:
+    """Seed of the hypothesis-draw generator of ``rank``, started at ``epoch`` (0 for a fresh run, the
+    resume epoch for a rank the checkpoint has no state for). Rank 0 of a fresh run: ``seed + 1``, the
+    single-process stream."""
+    return seed + 1 + rank * RANK_SEED_STRIDE + epoch * EPOCH_SEED_STRIDE
 
 
 @dataclass(frozen=True)
@@ -188,32 +219,44 @@ def metrics_available() -> bool:
 
 
 def validate(
-    net: SamplerNet, frames: list[Frame], fit: FitConfig, cfg: SamplerTrainConfig
+    net: SamplerNet,
+    frames: list[Frame],
+    fit: FitConfig,
+    cfg: SamplerTrainConfig,
+    ctx: DistContext | None = None,
 ) -> tuple[dict, str, float]:
     """Fit the frames with the current net; returns (metrics, selection key, selection value).
 
     Metrics in reporting units (cm, %); ``mean_inlier_fraction``: mean over frames of I_c / N of the fitted
     cuboids. The selection value is AUC@20 cm (%) if the evaluation package is available, else that
-    fraction.
+    fraction. With an active ``ctx`` (a collective: every rank calls it) rank r fits frames r, r + W, ...
+    and the per-frame results are gathered in frame order, so every rank returns the same numbers, equal
+    to one process's; ``seconds`` is this rank's wall time.
     """
+    ctx = ctx or DistContext()
     config = replace(
         fit, hypotheses=cfg.val_hypotheses, sampler="learned", grid_step=cfg.grid_step, seed=0, device="cpu"
     )
     sampler = LearnedSampler(net, device=next(net.parameters()).device)
     solver = NumericalSolver(SizeBounds(fit.a_min, fit.a_max), lr=fit.solver_lr, iters=fit.solver_iters)
     with_metrics = metrics_available()
-    per_frame, fractions, counts = [], [], []
     start = time.perf_counter()
-    for frame in frames:
+    results = []  # (inlier fraction, cuboids, metrics or None) of this rank's frames
+    for frame in frames[ctx.rank :: ctx.world_size]:
         depth = frame.depth_m()
         cuboids, info = fit_depth(depth, frame.camera, config, solver=solver, sampler=sampler)
-        fractions.append(sum(info.gains) / max(info.n_points, 1))
-        counts.append(len(cuboids))
+        metrics = None
         if with_metrics:
             from cuboidcli.evaluation.metrics import frame_metrics
 
-            per_frame.append(frame_metrics(frame.name, depth, frame.camera, cuboids))
+            metrics = frame_metrics(frame.name, depth, frame.camera, cuboids)
+        results.append((sum(info.gains) / max(info.n_points, 1), len(cuboids), metrics))
     net.train()
+    shards = ctx.gather(results)
+    ordered = [shards[i % ctx.world_size][i // ctx.world_size] for i in range(len(frames))]
+    fractions = [r[0] for r in ordered]
+    counts = [r[1] for r in ordered]
+    per_frame = [r[2] for r in ordered]
     out = {"mean_inlier_fraction": float(np.mean(fractions)), "cuboids": float(np.mean(counts))}
     if with_metrics:
         from cuboidcli.evaluation.metrics import aggregate, auc_key
@@ -238,9 +281,11 @@ def _load_state(path: str | Path) -> dict:
 class _Run:
     """The state of one training process: data, net, optimizer, generators, log."""
 
-    def __init__(self, cfg, data, out_dir: Path, net_cfg, fit: FitConfig, state, emit) -> None:
-        self.cfg, self.fit, self.data, self.out_dir, self.emit = cfg, fit, data, out_dir, emit
+    def __init__(self, ctx: DistContext, cfg, data, out_dir: Path, net_cfg, fit: FitConfig, state, emit):
+        self.ctx, self.cfg, self.fit, self.data, self.out_dir, self.emit = ctx, cfg, fit, data, out_dir, emit
         self.device = torch.device(cfg.device)
+        if ctx.active and self.device.type == "cuda":
+            self.device = torch.device("cuda", ctx.local_rank)  # one GPU per process on the node
         train_frames, val_frames, self.split_note = dataset_splits(data)
         self.scenes = prepare_scenes(train_frames, cfg.grid_step, fit.min_set, cfg.workers)
         if not self.scenes:
@@ -255,7 +300,7 @@ class _Run:
         torch.manual_seed(cfg.seed)
         self.net = SamplerNet(net_cfg).to(self.device).train()
         self.opt = torch.optim.Adam(self.net.parameters(), lr=cfg.lr)
-        self.gen = torch.Generator().manual_seed(cfg.seed + 1)  # the hypothesis draws
+        self.gen = torch.Generator().manual_seed(draw_seed(cfg.seed, ctx.rank))  # the hypothesis draws
         self.solver = NumericalSolver(
             SizeBounds(fit.a_min, fit.a_max), lr=fit.solver_lr, iters=fit.solver_iters
         )
@@ -263,18 +308,42 @@ class _Run:
         if state is not None:
             self.net.load_state_dict(state["state_dict"])
             self.opt.load_state_dict(state["optimizer"])
+            # Nothing draws from the global RNG during training (the draws and the frame order have seeded
+            # generators of their own), so rank 0's saved state serves every rank.
             torch.set_rng_state(state["torch_rng"])
-            self.gen.set_state(state["draw_rng"])
             self.epoch, self.best, self.step = int(state["epoch"]), float(state["best"]), int(state["step"])
+            draw_rngs = state.get("draw_rngs") or [state["draw_rng"]]  # older checkpoints: rank 0's only
+            if ctx.rank < len(draw_rngs):
+                self.gen.set_state(draw_rngs[ctx.rank])
+            else:  # resumed on more processes than the checkpoint was written by
+                self.gen.manual_seed(draw_seed(cfg.seed, ctx.rank, self.epoch))
+        if ctx.active:
+            # A collective check that every rank sees the same data, net and (resumed) weights: ranks that
+            # differ here would train replicas that silently drift apart.
+            mine = (
+                state_sha256(self.net.state_dict()),
+                self.net_cfg.to_dict(),
+                [s.name for s in self.scenes],
+                [f.name for f in self.val_frames],
+            )
+            if any(other != mine for other in ctx.gather(mine)):
+                raise ValueError(
+                    "the processes disagree on the training data, the net or its weights: every rank must "
+                    "read the same dataset folder (and --resume checkpoint)"
+                )
 
     def log(self, record: dict) -> None:
+        if not self.ctx.is_main:
+            return
         with (self.out_dir / "log.jsonl").open("a", encoding="utf-8") as f:
             f.write(json.dumps(record) + "\n")
         self.emit(record)
 
     def train_epoch(self) -> dict:
-        """One epoch of Adam steps over B scenes each; returns the mean of the per-instance records."""
-        cfg = self.cfg
+        """One epoch of Adam steps over B scenes each; returns the mean of the per-instance records.
+
+        Under DDP this rank trains its share of each step's scenes; the records are those of all ranks."""
+        cfg, ctx = self.cfg, self.ctx
         lp = cfg.loss_params(self.fit, self.epoch)
         order = epoch_order(len(self.scenes), self.epoch, cfg.seed, cfg.scenes_per_epoch)
         step_means = []
@@ -283,13 +352,17 @@ class _Run:
             batch = order[b : b + cfg.batch]
             self.opt.zero_grad(set_to_none=True)
             records = []
-            for i in batch:
-                scale = 1.0 / (len(batch) * cfg.instances)  # the mean over scenes and instances
+            # The mean over the step's scenes and instances, on all ranks together: the sum over the ranks
+            # of these partial gradients is the gradient of the global batch.
+            scale = 1.0 / (len(batch) * cfg.instances)
+            for i in batch[ctx.rank :: ctx.world_size]:
                 records += train_scene(
                     self.net, self.scenes[i].prep, self.solver, lp, cfg.instances, self.gen, scale
                 )
+            ctx.sum_gradients(self.net.parameters())
             self.opt.step()
             self.step += 1
+            records = [r for shard in ctx.gather(records) for r in shard]  # in scene order per rank
             step_means.append(_mean_records(records))
             self.log(
                 {
@@ -309,7 +382,7 @@ class _Run:
         """Validate; returns (new best?, record). Without val frames the latest weights count as best."""
         if not self.val_frames:
             return not initial, {}
-        metrics, key, value = validate(self.net, self.val_frames, self.fit, self.cfg)
+        metrics, key, value = validate(self.net, self.val_frames, self.fit, self.cfg, self.ctx)
         improved = not initial and value > self.best
         if not initial:
             self.best = max(self.best, value)
@@ -319,8 +392,13 @@ class _Run:
         return improved, record
 
     def save(self, improved: bool, val_record: dict) -> None:
-        """Training state to last.pt and epoch_XXX.pt; the weights to sampler_v2.pt if they are the best."""
+        """Training state to last.pt and epoch_XXX.pt; the weights to sampler_v2.pt if they are the best.
+
+        A collective (every rank's draw generator state goes into the checkpoint); rank 0 writes."""
         cfg = self.cfg
+        draw_rngs = self.ctx.gather(self.gen.get_state())
+        if not self.ctx.is_main:
+            return
         blob = {
             "kind": STATE_KIND,
             "config": self.net_cfg.to_dict(),
@@ -328,6 +406,8 @@ class _Run:
             "optimizer": self.opt.state_dict(),
             "torch_rng": torch.get_rng_state(),
             "draw_rng": self.gen.get_state(),
+            "draw_rngs": draw_rngs,
+            "world_size": self.ctx.world_size,
             "epoch": self.epoch,
             "step": self.step,
             "best": self.best,
@@ -359,6 +439,7 @@ def train_sampler(
     resume: str | Path | None = None,
     on_event: Callable[[dict], None] | None = None,
     stop_after_epoch: int | None = None,
+    backend: str | None = None,
 ) -> dict:
     """Run (or resume) training; returns the final record (epochs done, best value, paths).
 
@@ -367,9 +448,15 @@ def train_sampler(
     ``workers``, ``max_minutes`` and ``keep_snapshots`` of ``cfg`` apply. ``stop_after_epoch`` ends the
     run after that many completed epochs (as an interruption would). torch's thread count is set to
     ``cfg.threads`` for the run and restored afterwards.
+
+    Launched by ``torchrun`` with ``WORLD_SIZE > 1``, this joins the process group for the duration of
+    the call (``backend``: None = nccl on CUDA, gloo on CPU, or ``$CUBOIDS_DIST_BACKEND``) and trains data
+    parallel as the module docstring describes; every rank must pass the same arguments. Only rank 0
+    calls ``on_event`` and writes to ``out_dir``, which must be visible to every rank for ``resume``.
+    The final record then adds ``world_size`` and ``param_sha256``, one hash of the final weights per
+    rank, all equal when the replicas stayed in sync.
     """
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     fit = fit or FitConfig()
     state = None
     if resume is not None:
@@ -381,14 +468,18 @@ def train_sampler(
     threads_before = torch.get_num_threads()
     torch.set_num_threads(cfg.threads)
     try:
-        return _train(cfg, data, out_dir, net_cfg, fit, state, resume, on_event, stop_after_epoch)
+        with distributed(cfg.device, backend) as ctx:
+            if ctx.is_main:
+                out_dir.mkdir(parents=True, exist_ok=True)
+            emit = (on_event if ctx.is_main else None) or (lambda record: None)
+            return _train(ctx, cfg, data, out_dir, net_cfg, fit, state, resume, emit, stop_after_epoch)
     finally:
         torch.set_num_threads(threads_before)
 
 
-def _train(cfg, data, out_dir, net_cfg, fit, state, resume, on_event, stop_after_epoch) -> dict:
+def _train(ctx, cfg, data, out_dir, net_cfg, fit, state, resume, emit, stop_after_epoch) -> dict:
     t_start = time.perf_counter()
-    run = _Run(cfg, data, out_dir, net_cfg, fit, state, on_event or (lambda record: None))
+    run = _Run(ctx, cfg, data, out_dir, net_cfg, fit, state, emit)
     resolved = {
         "train": asdict(cfg),
         "net": run.net_cfg.to_dict(),
@@ -399,18 +490,21 @@ def _train(cfg, data, out_dir, net_cfg, fit, state, resume, on_event, stop_after
         "val_frames": len(run.val_frames),
         "resumed_from": None if resume is None else str(resume),
     }
-    atomic_write_json(out_dir / "config.json", resolved)
-    run.log(
-        {
-            "event": "start",
-            "epoch": run.epoch,
-            "epochs": cfg.epochs,
-            "parameters": parameter_count(run.net),
-            "train_frames": len(run.scenes),
-            "val_frames": len(run.val_frames),
-            "split": run.split_note,
-        }
-    )
+    start = {
+        "event": "start",
+        "epoch": run.epoch,
+        "epochs": cfg.epochs,
+        "parameters": parameter_count(run.net),
+        "train_frames": len(run.scenes),
+        "val_frames": len(run.val_frames),
+        "split": run.split_note,
+    }
+    if ctx.active:
+        resolved["distributed"] = {"world_size": ctx.world_size, "backend": ctx.backend}
+        start["world_size"] = ctx.world_size
+    if ctx.is_main:
+        atomic_write_json(out_dir / "config.json", resolved)
+    run.log(start)
     if state is None and cfg.validate_initial:
         run.validate(initial=True)
     while run.epoch < cfg.epochs:
@@ -429,9 +523,12 @@ def _train(cfg, data, out_dir, net_cfg, fit, state, resume, on_event, stop_after
         )
         if stop_after_epoch is not None and run.epoch >= stop_after_epoch:
             break
-        if cfg.max_minutes is not None and time.perf_counter() - t_start > 60.0 * cfg.max_minutes:
-            run.log({"event": "stop", "epoch": run.epoch, "reason": "max_minutes"})
-            break
+        if cfg.max_minutes is not None:
+            # Rank 0's clock decides for every rank: ranks that disagree would deadlock in the next step.
+            over = time.perf_counter() - t_start > 60.0 * cfg.max_minutes
+            if ctx.broadcast_float(float(over)) > 0.5:
+                run.log({"event": "stop", "epoch": run.epoch, "reason": "max_minutes"})
+                break
     final = {
         "event": "end",
         "epochs_done": run.epoch,
@@ -440,5 +537,10 @@ def _train(cfg, data, out_dir, net_cfg, fit, state, resume, on_event, stop_after
         "last": str(out_dir / "last.pt"),
         "seconds": time.perf_counter() - t_start,
     }
+    if ctx.active:
+        final["world_size"] = ctx.world_size
+        final["param_sha256"] = ctx.gather(state_sha256(run.net.state_dict()))
     run.log(final)
+    # Rank 0 finishes its files before any rank tears the process group down.
+    ctx.barrier()
     return final

@@ -1,0 +1,188 @@
+"""``cuboids train depth``: train the built-in monocular depth network on an RGB-D dataset folder.
+
+Registered on the ``train`` sub-command group by :func:`register`; the training itself lives in
+:mod:`cuboidcli.depth.train` (whose ``python -m`` entry point has the same defaults).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import typer
+
+from cuboidcli.cli.common import console, fail, resolve_device, user_errors
+
+_DEFAULTS_NOTE = "taken from the checkpoint with --resume"
+
+
+def _say(text: str, style: str | None = None) -> None:
+    """One line on stderr, never wrapped (logs stay one record a line), with no markup parsed in ``text``."""
+    console.print(text, style=style, markup=False, highlight=False, soft_wrap=True)
+
+
+def _duration(seconds: float) -> str:
+    return f"{seconds:.0f} s" if seconds < 90 else f"{seconds / 60:.1f} min"
+
+
+class _EventPrinter:
+    """Prints the trainer's records (``on_event`` of :func:`~cuboidcli.depth.train.train_depth`), one line
+    each; remembers the run's length from the ``start`` record."""
+
+    def __init__(self) -> None:
+        self.epochs = 0
+        self.steps = 0
+
+    def __call__(self, record: dict) -> None:
+        kind = record.get("event")
+        if kind == "start":
+            self.epochs = record["epochs"]
+            self.steps = record["epochs"] * record.get("steps_per_epoch", 0)
+            where = f" on {record['device']}" if "device" in record else ""
+            frames = ""
+            if "train_frames" in record:
+                frames = f"{record['train_frames']} train / {record['val_frames']} val frames, "
+            _say(
+                f"depth net: {record['parameters']:,} parameters; {frames}batch {record.get('batch', '?')}; "
+                f"epoch {record['epoch']} -> {record['epochs']}{where}"
+            )
+            if record["epoch"] >= record["epochs"]:
+                _say(
+                    f"the checkpoint has done all {record['epochs']} epochs; give a larger --epochs to go on",
+                    style="yellow",
+                )
+        elif kind == "train":
+            steps = f"/{self.steps}" if self.steps else ""
+            speed = f", {record['images_per_s']:.1f} images/s" if "images_per_s" in record else ""
+            _say(
+                f"epoch {record['epoch'] + 1}/{self.epochs} step {record['step']}{steps}: "
+                f"loss {record['loss']:.4f}, lr {record['lr']:.2e}, grad norm {record['grad_norm']:.2f}"
+                f"{speed} ({_duration(record['elapsed_s'])})"
+            )
+        elif kind == "val":
+            tag = " *best*" if record.get("best") else ""
+            _say(
+                f"val epoch {record['epoch']}/{self.epochs}: AbsRel {record['abs_rel']:.4f}, "
+                f"RMSE {record['rmse_m']:.3f} m, delta<1.25 {record['delta1']:.3f} "
+                f"({record['frames']} frames){tag} ({_duration(record['elapsed_s'])})",
+                style="bold",
+            )
+        elif kind == "done":
+            best = record["best_abs_rel"]
+            note = " (stopped by --max-minutes)" if record.get("timed_out") else ""
+            _say(
+                f"done: epoch {record['epoch']}, step {record['step']}{note} in "
+                f"{_duration(record['elapsed_s'])}; best val AbsRel "
+                f"{f'{best:.4f}' if math.isfinite(best) else 'n/a'}; weights {record['best']}; "
+                f"training state {record['last']}",
+                style="green",
+            )
+
+
+def train_depth_cmd(
+    ctx: typer.Context,
+    data: Path = typer.Argument(
+        ..., help="RGB-D dataset folder (the layout of 'cuboids synth'; splits.json gives train/val)."
+    ),
+    epochs: int = typer.Option(
+        60,
+        "--epochs",
+        help="Passes over the training split. With --resume: the checkpoint's unless given (a larger value "
+        "extends a run and stretches its lr decay).",
+    ),
+    batch: int = typer.Option(8, "--batch", help=f"Images per optimizer step ({_DEFAULTS_NOTE})."),
+    lr: float = typer.Option(
+        1e-3, "--lr", help=f"Peak AdamW learning rate; warm-up, then cosine decay ({_DEFAULTS_NOTE})."
+    ),
+    l1_weight: float = typer.Option(
+        0.2, "--l1-weight", help=f"Weight of the L1 depth error (1/m) beside SILog ({_DEFAULTS_NOTE})."
+    ),
+    min_crop: float = typer.Option(
+        0.8, "--min-crop", help=f"Smallest random crop, fraction of the side; 1 = none ({_DEFAULTS_NOTE})."
+    ),
+    jitter: float = typer.Option(
+        0.3, "--jitter", help=f"Colour jitter: factors in [1 - j, 1 + j]; 0 = none ({_DEFAULTS_NOTE})."
+    ),
+    log_every: int = typer.Option(10, "--log-every", help="Print and log the training loss every N steps."),
+    out: Path = typer.Option(Path("runs/depth"), "--out", "-o", help="Folder for logs and checkpoints."),
+    resume: Path | None = typer.Option(
+        None, "--resume", help="Continue from OUT/last.pt: net, schedule and augmentation come from it."
+    ),
+    seed: int = typer.Option(
+        0, "--seed", help=f"Seeds the weights, the frame order and the augmentation ({_DEFAULTS_NOTE})."
+    ),
+    threads: int = typer.Option(1, "--threads", help="torch CPU threads (cores may be shared)."),
+    device: str = typer.Option("cpu", "--device", help="auto, cpu or cuda."),
+    max_minutes: float | None = typer.Option(
+        None,
+        "--max-minutes",
+        help="Training time budget, summed over resumed sessions: the lr decays over whichever runs out "
+        "first, --epochs or this, and the run then ends with a validation. With --resume: the checkpoint's "
+        "unless given.",
+    ),
+) -> None:
+    """Train the built-in depth network on DATA; the best weights (lowest val AbsRel) go to OUT/best.pt.
+
+    Images are resized to the net's 320x240 input; OUT also gets config.json, log.jsonl and last.pt.
+    Use the weights with: cuboids fit IMAGE --depth-model OUT/best.pt ...
+    """
+    from cuboidcli.depth.train import RESUME_OVERRIDES, DepthTrainConfig, train_depth
+
+    if not data.is_dir():
+        fail(f"dataset folder not found: {data}")
+    if resume is not None and not resume.is_file():
+        fail(f"--resume {resume}: no such checkpoint (give OUT/last.pt)")
+    if out.exists() and not out.is_dir():
+        fail(f"--out {out} is a file; give a folder")
+    if resume is None and (out / "last.pt").is_file():
+        fail(
+            f"--out {out} already holds a training run; continue it with --resume {out / 'last.pt'} "
+            "or pick another --out"
+        )
+    device = resolve_device(device)
+    try:
+        cfg = DepthTrainConfig(
+            epochs=epochs,
+            batch=batch,
+            lr=lr,
+            l1_weight=l1_weight,
+            min_crop=min_crop,
+            jitter=jitter,
+            seed=seed,
+            threads=threads,
+            log_every=log_every,
+            max_minutes=max_minutes,
+            device=device,
+        )
+    except ValueError as e:
+        fail(str(e))
+
+    def given(name: str) -> bool:  # by name: typer may bring its own copy of click's ParameterSource
+        source = ctx.get_parameter_source(name)
+        return source is not None and source.name not in ("DEFAULT", "DEFAULT_MAP")
+
+    overrides = set(RESUME_OVERRIDES) - {"max_minutes"}
+    if resume is not None:
+        overrides |= {name for name in ("epochs", "max_minutes") if given(name)}
+        ignored = [name for name in ("batch", "lr", "l1_weight", "min_crop", "jitter", "seed") if given(name)]
+        if ignored:
+            options = ", ".join("--" + name.replace("_", "-") for name in ignored)
+            _say(f"warning: {options}: ignored with --resume (the checkpoint's values apply)", style="yellow")
+    _say(f"training the depth net on {data}; logs and checkpoints in {out}")
+    with user_errors():
+        try:
+            train_depth(data, out, cfg, resume=resume, on_event=_EventPrinter(), resume_overrides=overrides)
+        except ValueError as e:
+            fail(str(e))
+        except KeyboardInterrupt:
+            last = out / "last.pt"
+            if last.is_file():
+                fail(f"interrupted; continue with --resume {last}", code=130)
+            if resume is not None:
+                fail(f"interrupted; continue with --resume {resume}", code=130)
+            fail("interrupted before the first epoch ended; nothing to resume", code=130)
+
+
+def register(train_app: typer.Typer) -> None:
+    """Add the ``depth`` command to the ``cuboids train`` group."""
+    train_app.command("depth")(train_depth_cmd)

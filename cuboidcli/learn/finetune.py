@@ -1,0 +1,560 @@
+"""End-to-end fine-tuning of the learned components (paper Sec. 3.5 and Sec. 4, "End-to-end network
+fine-tuning"): sampler + neural solver on depth input, or depth network + sampler (+ neural solver) on RGB.
+
+One scene runs |M| instances in sequence, as the sampler's own training does
+(:mod:`cuboidcli.learn.sampler_train`), but now every component between the image and the task loss
+carries gradients:
+
+- features Y: the true fitting points (depth input) or the back-projected grid of the depth network's
+  prediction (RGB input; differentiable in the network's weights v);
+- sampling: Q maps and selection weights from the sampling-weight network on (Y's depth, state), drawn
+  K times into sets of |H| minimal sets (policy-gradient term for w and, through the net's input, for v);
+- solving: the neural solver (differentiable in its weights and its input points) or the numerical
+  solver with implicit-function gradients w.r.t. the points (:mod:`cuboidcli.solvers.implicit`);
+- selection: p(h | H) = softmax(alpha I_i(Y, M, h)) with the inlier gains on Y, as inference selects;
+- task loss: l(h) = -I_c(Z, M u {h}) / N on the TRUE points Z. With depth input Z = Y. With RGB input the
+  paper's training "relies on ground-truth depth"; measuring the loss on Y instead would let the depth
+  network flatten the scene into something easy to fit.
+
+The loss of an instance is (1/K) sum_k [ clamp(E_k - mean E) log p(H_k) + E_k ], E_k = E_{h ~ p(h|H_k)}[l]:
+the gradient estimate of the paper's Eq. 10, with the mean of the K expectations as baseline. Following
+the paper's fine-tuning column (appendix Table 7) alpha is 1000 and the regularisers are off by default.
+The states of Y and of Z are updated with the hypothesis of the best gain on Y between instances.
+
+Validation after every epoch fits the val frames with the current networks (from RGB through the depth
+network when ``rgb``), scores them against the TRUE depth with the paper's metrics and keeps the weights
+of the best AUC@20 cm. Files in ``out_dir``: ``config.json``, ``log.jsonl``, ``last.pt`` (training state,
+``resume`` continues from it), and the best weights under the names ``cuboids fit --weights DIR`` reads:
+``sampler_v2.pt``, ``solver_v2.pt`` (neural solver) and ``depth_v2.pt`` (RGB). The module prints nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F  # noqa: N812 - the usual alias
+from torch import Tensor
+
+from cuboidcli.camera import Camera
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.fused import cuboid_values
+from cuboidcli.fitting.pipeline import fit_depth, prepare_points
+from cuboidcli.fitting.sampling import draw_sets_and_maps
+from cuboidcli.geometry.kernels import combine, oai_per_cuboid
+from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
+from cuboidcli.io.dataset import Frame
+from cuboidcli.learn.sampler_data import dataset_splits, epoch_order
+from cuboidcli.learn.sampler_loss import (
+    CORR_MODES,
+    correlation_loss,
+    entropy_loss,
+    inlier_masking_loss,
+    set_log_prob,
+)
+from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
+from cuboidcli.learn.sampler_net import LearnedSampler, SamplerNet
+from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
+from cuboidcli.learn.sampler_net import net_from_checkpoint as sampler_from_checkpoint
+from cuboidcli.learn.sampler_net import weights_path as sampler_weights_path
+
+STATE_KIND = "finetune-state"
+SOLVER_NAME = "solver_v2.pt"
+DEPTH_NAME = "depth_v2.pt"
+SOLVERS = ("neural", "numerical")
+
+
+@dataclass(frozen=True)
+class FinetuneConfig:
+    """Schedule of a fine-tuning run; defaults follow the paper's fine-tuning column except the rates."""
+
+    rgb: bool = False
+    """Fine-tune from RGB: the depth network's prediction is the input (needs RGB frames)."""
+    solver: str = "neural"
+    """neural (fine-tuned too) | numerical (implicit-function gradients; not trained)."""
+    epochs: int = 10
+    lr: float = 1e-5
+    """Adam learning rate of the sampling-weight network (the paper: 1e-7 for 25 GPU epochs)."""
+    solver_lr: float | None = None
+    """Of the neural solver; None = lr."""
+    depth_lr: float | None = None
+    """Of the depth network; None = lr."""
+    batch: int = 2
+    hypotheses: int = 32
+    instances: int = 8
+    samples_k: int = 2
+    alpha: float = 1000.0
+    grad_top: int = 4
+    """The differentiable expectation E_h[l] runs over the hypotheses of the grad_top largest gains of a
+    set (softmax renormalised over them); with alpha = 1000 the rest carry a negligible selection weight,
+    and the occlusion-aware count with gradients is the most expensive part of a step."""
+    loss_clamp: float = 0.3
+    kappa_corr: float = 0.0
+    corr_mode: str = "positive"
+    kappa_entropy: float = 0.0
+    kappa_im: float = 0.0
+    scenes_per_epoch: int | None = None
+    grid_step: int = 8
+    seed: int = 0
+    threads: int = 1
+    device: str = "cpu"
+    val_hypotheses: int = 512
+    val_frames: int | None = None
+    validate_initial: bool = True
+    max_minutes: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.solver not in SOLVERS:
+            raise ValueError(f"solver must be one of {SOLVERS}, got {self.solver!r}")
+        if self.solver == "numerical" and not self.rgb:
+            raise ValueError(
+                "fine-tuning with the numerical solver on depth input trains only the sampler: use "
+                "'cuboids train sampler', or --solver neural, or --rgb"
+            )
+        if self.samples_k < 2:
+            raise ValueError("samples_k (K) must be at least 2: the baseline of K = 1 cancels the signal")
+        if self.device != "cpu":
+            raise ValueError(f"fine-tuning runs on the CPU in this version (got device {self.device!r})")
+        if self.corr_mode not in CORR_MODES:
+            raise ValueError(f"corr_mode must be one of {CORR_MODES}, got {self.corr_mode!r}")
+        for name in (
+            "epochs",
+            "batch",
+            "hypotheses",
+            "instances",
+            "grid_step",
+            "threads",
+            "val_hypotheses",
+            "grad_top",
+        ):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        for name in ("lr", "solver_lr", "depth_lr"):
+            value = getattr(self, name)
+            if value is not None and not value > 0:
+                raise ValueError(f"{name} must be positive, got {value}")
+
+
+@dataclass
+class Scene:
+    """A training frame: true fitting points Z, the grid, and (RGB) the image and pixel coordinates."""
+
+    name: str
+    camera: Camera
+    z_points: Tensor  # (N, 3) float64, m
+    grid_index: Tensor  # (N,) long
+    grid_shape: tuple[int, int]
+    depth_grid: Tensor  # (Hs, Ws) float32, true depth on the grid (0 = invalid)
+    grid_step: int
+    rgb: Tensor | None = None  # (1, 3, h, w) float32 in [0, 1] at the depth net's input size
+    uv: Tensor | None = None  # (N, 2) float64 pixel coordinates of the fitting points
+
+
+def load_scene(frame: Frame, grid_step: int, rgb_size: tuple[int, int] | None) -> Scene | None:
+    """Read a frame; None when it has fewer than 6 valid points (or no RGB when ``rgb_size``)."""
+    depth = frame.depth_m()
+    prep = prepare_points(depth, frame.camera, grid_step)
+    if prep.points.shape[0] < 6:
+        return None
+    scene = Scene(
+        frame.name,
+        frame.camera,
+        prep.points.double(),
+        prep.grid_index,
+        prep.grid_shape,
+        prep.depth_grid.float(),
+        grid_step,
+    )
+    if rgb_size is not None:
+        from cuboidcli.depth.estimator import resize
+
+        image = frame.rgb()
+        if image is None:
+            return None
+        small = resize(image, *rgb_size)
+        scene.rgb = torch.from_numpy(np.ascontiguousarray(small)).permute(2, 0, 1)[None].float() / 255.0
+        u, v = frame.camera.pixel_grid(grid_step)
+        uv = np.stack([u.reshape(-1), v.reshape(-1)], 1)[prep.grid_index.numpy()]
+        scene.uv = torch.from_numpy(uv)
+    return scene
+
+
+def predicted_grid(depth_net, scene: Scene) -> Tensor:
+    """The depth network's metric prediction on the fitting grid (Hs, Ws), differentiable in its weights.
+
+    As :class:`~cuboidcli.depth.estimator.BuiltinDepthEstimator`: predict at the net's input size, scale by
+    f / f_canonical, resize to the image (bilinear) and take every grid_step-th pixel.
+    """
+    from cuboidcli.depth.estimator import BuiltinDepthEstimator
+
+    cam = scene.camera
+    factor = BuiltinDepthEstimator(net=depth_net, device=scene.rgb.device).focal_factor(cam)
+    depth_net.eval()  # batch-norm statistics stay frozen: fine-tuning sees one image at a time
+    pred = depth_net(depth_net.normalise(scene.rgb)) * factor  # (1, 1, h, w)
+    if pred.shape[-2:] != (cam.height, cam.width):
+        pred = F.interpolate(pred, size=(cam.height, cam.width), mode="bilinear", align_corners=False)
+    return pred[0, 0, :: scene.grid_step, :: scene.grid_step]
+
+
+def backproject_grid(grid: Tensor, scene: Scene) -> Tensor:
+    """Fitting points Y (N, 3) float64 from a depth grid (Hs, Ws) at the scene's valid cells."""
+    cam = scene.camera
+    z = grid.reshape(-1)[scene.grid_index].double()
+    u, v = scene.uv[:, 0], scene.uv[:, 1]
+    return torch.stack([(u - cam.cx) / cam.fx * z, (v - cam.cy) / cam.fy * z, z], 1)
+
+
+@dataclass
+class Nets:
+    """The networks being fine-tuned (``solver``/``depth`` None when not part of the run)."""
+
+    sampler: SamplerNet
+    solver: torch.nn.Module | None
+    depth: torch.nn.Module | None
+
+    def modules(self) -> dict[str, torch.nn.Module]:
+        named = {"sampler": self.sampler, "solver": self.solver, "depth": self.depth}
+        return {k: v for k, v in named.items() if v is not None}
+
+
+def load_nets(cfg: FinetuneConfig, sampler_weights=None, solver_weights=None, depth_weights=None) -> Nets:
+    """The pre-trained starting points (None = the shipped weights)."""
+    from cuboidcli.solvers.neural import load_solver_net
+
+    path = sampler_weights_path(sampler_weights)
+    if not path.is_file():
+        raise FileNotFoundError(f"sampler weights {path} not found; train them with 'cuboids train sampler'")
+    sampler = sampler_from_checkpoint(torch.load(path, map_location="cpu", weights_only=True))
+    solver = load_solver_net(solver_weights, "cpu") if cfg.solver == "neural" else None
+    depth = None
+    if cfg.rgb:
+        from cuboidcli.depth.estimator import default_weights_path
+        from cuboidcli.depth.net import net_from_checkpoint
+
+        dpath = Path(depth_weights) if depth_weights is not None else default_weights_path()
+        if not dpath.is_file():
+            raise FileNotFoundError(f"depth weights {dpath} not found; train them with 'cuboids train depth'")
+        depth = net_from_checkpoint(torch.load(dpath, map_location="cpu", weights_only=True))
+    return Nets(sampler, solver, depth)
+
+
+def _solve(nets: Nets, numerical, sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+    if nets.solver is not None:
+        c, a, r = nets.solver(sets.float())
+        return c.double(), a.double(), r.double()
+    from cuboidcli.solvers.implicit import implicit_cuboid_solve
+
+    return implicit_cuboid_solve(sets.double(), numerical)
+
+
+def scene_loss(
+    nets: Nets, scene: Scene, cfg: FinetuneConfig, fit: FitConfig, numerical, gen: torch.Generator
+) -> tuple[Tensor, list[dict]]:
+    """The mean instance loss of one scene (with gradients) and one record of floats per instance."""
+    z = scene.z_points
+    n = z.shape[0]
+    if nets.depth is not None:
+        grid = predicted_grid(nets.depth, scene)
+        y = backproject_grid(grid, scene)
+        depth_in = grid.float()
+    else:
+        y, depth_in = z, scene.depth_grid
+    hs, ws = scene.grid_shape
+    valid = torch.zeros(hs * ws, dtype=torch.bool)
+    valid[scene.grid_index] = True
+    valid = valid.view(1, hs, ws)
+    state_y = torch.zeros(n, dtype=torch.float64)
+    state_z = torch.zeros(n, dtype=torch.float64)
+    kernel = (fit.tau_sq_m2, fit.beta, fit.tau_c)
+    z32 = z.float()
+    losses, records = [], []
+    for _ in range(cfg.instances):
+        state_grid = torch.zeros(hs * ws, dtype=torch.float32)
+        state_grid[scene.grid_index] = state_y.float()
+        out = nets.sampler(depth_in.view(1, hs, ws), state_grid.view(1, hs, ws), valid)
+        log_p = out.log_p[0].flatten(1)[:, scene.grid_index]
+        log_q = out.log_q[0]
+        p, q = log_p.detach().exp().double(), log_q.detach().exp().double()
+        expected, log_probs = [], []
+        best = (-math.inf, None, None)
+        for _k in range(cfg.samples_k):
+            maps, idx = draw_sets_and_maps(p, q, cfg.hypotheses, fit.min_set, gen)
+            c, a, r = _solve(nets, numerical, y[idx])
+            # All |H| gains without gradients (the fused kernel), then the differentiable expectation over
+            # the grad_top hypotheses of largest selection weight, the softmax renormalised over them.
+            with torch.no_grad():
+                v_all = torch.from_numpy(
+                    cuboid_values(y.detach(), c.detach(), a.detach(), r.detach(), *kernel)
+                )
+                g_all = (combine(v_all, state_y[None]) - state_y[None]).sum(1) / n
+            top = torch.topk(g_all, min(cfg.grad_top, g_all.shape[0])).indices
+            c32, a32, r32 = c[top].float(), a[top].float(), r[top].float()
+            v_y = oai_per_cuboid(y.float(), c32, a32, r32, *kernel).double()  # (top, N)
+            v_z = v_y if nets.depth is None else oai_per_cuboid(z32, c32, a32, r32, *kernel).double()
+            gains = (combine(v_y, state_y[None]) - state_y[None]).sum(1) / n
+            task = -combine(v_z, state_z[None]).sum(1) / n
+            expected.append((torch.softmax(cfg.alpha * gains, 0) * task).sum())
+            log_probs.append(set_log_prob(log_p, log_q, maps, idx))
+            g = gains.detach()
+            if float(g[0]) > best[0]:  # topk is sorted: the first is the best of the set
+                best = (float(g[0]), v_y[0].detach(), v_z[0].detach())
+        e = torch.stack(expected)
+        advantage = (e.detach() - e.detach().mean()).clamp(-cfg.loss_clamp, cfg.loss_clamp)
+        loss = (advantage.float() * torch.stack(log_probs)).mean() + e.mean().float()
+        if cfg.kappa_corr:
+            free = out.log_p_free[0].flatten(1)[:, scene.grid_index].exp()
+            loss = loss + cfg.kappa_corr * correlation_loss(free, cfg.corr_mode)
+        if cfg.kappa_entropy:
+            loss = loss + cfg.kappa_entropy * entropy_loss(log_q.exp())
+        if cfg.kappa_im:
+            loss = loss + cfg.kappa_im * inlier_masking_loss(log_p.exp(), state_y)
+        losses.append(loss)
+        records.append({"expected_loss": float(e.detach().mean()), "best_gain": best[0]})
+        state_y = combine(best[1], state_y)
+        state_z = combine(best[2], state_z)
+    return torch.stack(losses).mean(), records
+
+
+def validate(nets: Nets, frames: list[Frame], cfg: FinetuneConfig, fit: FitConfig) -> dict:
+    """Fit the val frames with the current networks; the paper's metrics against the true depth."""
+    from cuboidcli.evaluation.metrics import aggregate, frame_metrics
+    from cuboidcli.solvers.neural import NeuralSolver
+    from cuboidcli.solvers.numerical import NumericalSolver
+
+    config = replace(fit, hypotheses=cfg.val_hypotheses, sampler="learned", grid_step=cfg.grid_step, seed=0)
+    sampler = LearnedSampler(nets.sampler)
+    if nets.solver is not None:
+        solver = NeuralSolver(net=nets.solver)
+    else:
+        solver = NumericalSolver(lr=fit.solver_lr, iters=fit.solver_iters)
+    estimator = None
+    if nets.depth is not None:
+        from cuboidcli.depth.estimator import BuiltinDepthEstimator
+
+        estimator = BuiltinDepthEstimator(net=nets.depth)
+    per_frame = []
+    start = time.perf_counter()
+    for frame in frames:
+        depth = frame.depth_m()
+        fit_input = depth if estimator is None else estimator.predict(frame.rgb(), frame.camera)
+        cuboids, _ = fit_depth(fit_input, frame.camera, config, solver=solver, sampler=sampler)
+        per_frame.append(frame_metrics(frame.name, depth, frame.camera, cuboids))
+    for module in nets.modules().values():
+        module.train()
+    if nets.depth is not None:
+        nets.depth.eval()
+    out = aggregate(per_frame)
+    out.pop("time_s", None)
+    out["seconds"] = time.perf_counter() - start
+    return out
+
+
+def _weights_files(nets: Nets, out_dir: Path, meta: dict) -> None:
+    atomic_torch_save(sampler_checkpoint(nets.sampler, meta), out_dir / SAMPLER_NAME)
+    if nets.solver is not None:
+        from cuboidcli.learn.solver_net import checkpoint_dict
+
+        atomic_torch_save(checkpoint_dict(nets.solver, meta), out_dir / SOLVER_NAME)
+    if nets.depth is not None:
+        from cuboidcli.depth.net import checkpoint_dict
+
+        atomic_torch_save(checkpoint_dict(nets.depth, meta), out_dir / DEPTH_NAME)
+
+
+def finetune(
+    cfg: FinetuneConfig,
+    data: str | Path,
+    out_dir: str | Path,
+    sampler_weights: str | Path | None = None,
+    solver_weights: str | Path | None = None,
+    depth_weights: str | Path | None = None,
+    resume: str | Path | None = None,
+    on_event: Callable[[dict], None] | None = None,
+    fit: FitConfig | None = None,
+) -> dict:
+    """Fine-tune end to end (see the module docstring); returns the final record.
+
+    ``*_weights``: starting points (None = the shipped ones). ``resume``: a ``last.pt`` of this trainer;
+    the run's schedule and networks come from it, only ``epochs``, ``threads``, ``device`` and
+    ``max_minutes`` of ``cfg`` apply.
+    """
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    emit = on_event or (lambda record: None)
+    fit = fit or FitConfig()
+    state = None
+    if resume is not None:
+        state = torch.load(resume, map_location="cpu", weights_only=True)
+        if not isinstance(state, dict) or state.get("kind") != STATE_KIND:
+            raise ValueError(f"{resume} is not a fine-tuning checkpoint (give OUT/last.pt)")
+        keep = {k: getattr(cfg, k) for k in ("epochs", "threads", "device", "max_minutes")}
+        cfg = replace(FinetuneConfig(**state["config"]), **keep)
+        fit = FitConfig(**state["fit_config"])
+    threads_before = torch.get_num_threads()
+    torch.set_num_threads(cfg.threads)
+    try:
+        return _run(
+            cfg, Path(data), out_dir, sampler_weights, solver_weights, depth_weights, state, emit, fit
+        )
+    finally:
+        torch.set_num_threads(threads_before)
+
+
+def _log(out_dir: Path, emit, record: dict) -> None:
+    with (out_dir / "log.jsonl").open("a", encoding="utf-8") as f:
+        f.write(json.dumps(record) + "\n")
+    emit(record)
+
+
+def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> dict:
+    from cuboidcli.solvers.implicit import polished
+    from cuboidcli.solvers.numerical import NumericalSolver
+
+    t_start = time.perf_counter()
+    torch.manual_seed(cfg.seed)
+    nets = load_nets(cfg, sampler_w, solver_w, depth_w)
+    if state is not None:
+        for name, module in nets.modules().items():
+            module.load_state_dict(state["nets"][name])
+    for module in nets.modules().values():
+        module.train()
+    if nets.depth is not None:
+        nets.depth.eval()
+    rates = {"sampler": cfg.lr, "solver": cfg.solver_lr or cfg.lr, "depth": cfg.depth_lr or cfg.lr}
+    groups = [{"params": list(m.parameters()), "lr": rates[k]} for k, m in nets.modules().items()]
+    opt = torch.optim.Adam(groups)
+    gen = torch.Generator().manual_seed(cfg.seed + 1)
+    epoch, best, step = 0, -math.inf, 0
+    if state is not None:
+        opt.load_state_dict(state["optimizer"])
+        torch.set_rng_state(state["torch_rng"])
+        gen.set_state(state["draw_rng"])
+        epoch, best, step = int(state["epoch"]), float(state["best"]), int(state["step"])
+    numerical = polished(NumericalSolver(lr=fit.solver_lr, iters=fit.solver_iters))
+
+    train_frames, val_frames, split = dataset_splits(data)
+    if cfg.val_frames is not None:
+        val_frames = val_frames[: cfg.val_frames]
+    rgb_size = None
+    if nets.depth is not None:
+        rgb_size = (nets.depth.config.input_height, nets.depth.config.input_width)
+    scenes = [s for s in (load_scene(f, cfg.grid_step, rgb_size) for f in train_frames) if s is not None]
+    if not scenes:
+        raise ValueError(
+            f"no usable training frames in {data} (each needs >= 6 valid points"
+            + (" and an RGB image)" if cfg.rgb else ")")
+        )
+    if cfg.rgb and any(f.rgb_path is None for f in val_frames):
+        raise ValueError("fine-tuning from RGB needs RGB images for the val frames too")
+    atomic_write_json(
+        out_dir / "config.json",
+        {
+            "finetune": asdict(cfg),
+            "fit": fit.to_dict(),
+            "data": str(data),
+            "split": split,
+            "train_frames": len(scenes),
+            "val_frames": len(val_frames),
+        },
+    )
+    params = {k: sum(p.numel() for p in m.parameters()) for k, m in nets.modules().items()}
+    _log(
+        out_dir,
+        emit,
+        {
+            "event": "start",
+            "epoch": epoch,
+            "epochs": cfg.epochs,
+            "parameters": params,
+            "train_frames": len(scenes),
+            "val_frames": len(val_frames),
+            "split": split,
+        },
+    )
+    if state is None and cfg.validate_initial and val_frames:
+        record = validate(nets, val_frames, cfg, fit)
+        _log(out_dir, emit, {"event": "val", "epoch": 0, "initial": True, **record})
+
+    while epoch < cfg.epochs:
+        t_epoch = time.perf_counter()
+        order = epoch_order(len(scenes), epoch, cfg.seed, cfg.scenes_per_epoch)
+        epoch_records = []
+        for b in range(0, len(order), cfg.batch):
+            t_step = time.perf_counter()
+            batch = order[b : b + cfg.batch]
+            opt.zero_grad(set_to_none=True)
+            records = []
+            for i in batch:
+                loss, recs = scene_loss(nets, scenes[i], cfg, fit, numerical, gen)
+                (loss / len(batch)).backward()
+                records += recs
+            opt.step()
+            step += 1
+            mean = {k: float(np.mean([r[k] for r in records])) for k in records[0]}
+            epoch_records.append(mean)
+            _log(
+                out_dir,
+                emit,
+                {
+                    "event": "step",
+                    "epoch": epoch + 1,
+                    "step": step,
+                    **mean,
+                    "scenes": len(batch),
+                    "seconds": time.perf_counter() - t_step,
+                },
+            )
+        epoch += 1
+        improved, val_record = not val_frames, {}
+        if val_frames:
+            val_record = validate(nets, val_frames, cfg, fit)
+            value = float(val_record["auc20cm_pct"])
+            improved = value > best
+            best = max(best, value)
+            _log(out_dir, emit, {"event": "val", "epoch": epoch, "best": improved, **val_record})
+        blob = {
+            "kind": STATE_KIND,
+            "config": asdict(cfg),
+            "fit_config": fit.to_dict(),
+            "nets": {k: m.state_dict() for k, m in nets.modules().items()},
+            "optimizer": opt.state_dict(),
+            "torch_rng": torch.get_rng_state(),
+            "draw_rng": gen.get_state(),
+            "epoch": epoch,
+            "step": step,
+            "best": best,
+        }
+        atomic_torch_save(blob, out_dir / "last.pt")
+        if improved:
+            meta = {"finetune": asdict(cfg), "epoch": epoch, "val": val_record, "data": str(data)}
+            _weights_files(nets, out_dir, meta)
+        summary = {k: float(np.mean([r[k] for r in epoch_records])) for k in epoch_records[0]}
+        _log(
+            out_dir,
+            emit,
+            {
+                "event": "epoch",
+                "epoch": epoch,
+                **summary,
+                "best": improved,
+                "seconds": time.perf_counter() - t_epoch,
+            },
+        )
+        if cfg.max_minutes is not None and time.perf_counter() - t_start > 60.0 * cfg.max_minutes:
+            _log(out_dir, emit, {"event": "stop", "epoch": epoch, "reason": "max_minutes"})
+            break
+    final = {
+        "event": "end",
+        "epochs_done": epoch,
+        "best": best,
+        "out": str(out_dir),
+        "seconds": time.perf_counter() - t_start,
+    }
+    _log(out_dir, emit, final)
+    return final
