@@ -293,3 +293,41 @@ def test_real_frames_of_shared_data_are_evaluable():
             assert 0.0 <= m.coverage <= 1.0 and m.time_s > 0
             if m.cuboids:
                 assert math.isfinite(m.oa_all_m) and 0.0 <= m.auc[20.0].value <= 1.0
+
+
+def test_rgb_input_fits_estimated_depth_and_scores_against_true_depth(app, folder, tmp_path):
+    """--rgb: frames without an image fail in one line; with images the fit uses the depth network's
+    prediction (here an untrained tiny net), is scored against the true depth, and times the estimation."""
+    import shutil
+
+    import torch
+
+    from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict
+
+    res = CliRunner().invoke(app, ["evaluate", str(folder), "--rgb", *FAST_OPTS])
+    assert res.exit_code == 2 and "needs an RGB image" in res.output
+
+    data = tmp_path / "data"
+    shutil.copytree(folder, data)
+    (data / "rgb").mkdir()
+    for name in ("f0", "f1", "f2"):
+        depth = cv2.imread(str(data / "depth" / f"{name}.png"), cv2.IMREAD_UNCHANGED)
+        grey = np.clip(depth / 30.0, 0, 255).astype(np.uint8)
+        cv2.imwrite(str(data / "rgb" / f"{name}.png"), np.stack([grey] * 3, -1))
+    torch.manual_seed(0)
+    net = DepthNet(DepthNetConfig(channels=(4, 8, 8, 8, 8), input_height=64, input_width=80))
+    torch.save(checkpoint_dict(net), tmp_path / "depth.pt")
+    frames, _ = load_frames(data)
+    settings = EvalSettings(rgb=True, depth_model=tmp_path / "depth.pt")
+    report = evaluate(frames, SMALL, settings)
+    from_depth = evaluate(frames, SMALL, EvalSettings())
+    assert len(report.frames[0]) == 3
+    # the untrained net's depth is far from the truth: the cuboids fit it, not the true points
+    assert report.runs[0]["auc20cm_pct"] < from_depth.runs[0]["auc20cm_pct"]
+    res = CliRunner().invoke(
+        app, ["evaluate", str(data), "--rgb", "--depth-model", str(tmp_path / "depth.pt"), *FAST_OPTS]
+    )
+    assert res.exit_code == 0, res.output
+    assert "from RGB" in res.output
+    res = CliRunner().invoke(app, ["evaluate", str(data), "--depth-model", str(tmp_path / "depth.pt")])
+    assert res.exit_code == 2 and "applies to --rgb" in res.output

@@ -179,6 +179,12 @@ def evaluate(
     weights: Path = typer.Option(
         None, "--weights", help="Network weights: a folder or a .pt file (default: shipped)."
     ),
+    rgb: bool = typer.Option(
+        False, "--rgb", help="Fit to depth estimated from each RGB image; score against the true depth."
+    ),
+    depth_model: Path = typer.Option(
+        None, "--depth-model", help="With --rgb: depth net .pt (built-in) or metric .onnx [default: shipped]."
+    ),
     seed: int = typer.Option(0, "--seed", help="Seed of the first run."),
     device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
 ) -> None:
@@ -199,6 +205,12 @@ def evaluate(
         fail("--fits evaluates fixed cuboids: drop --runs and --save-fits")
     if weights is not None and not weights.exists():
         fail(f"--weights {weights}: no such folder or file")
+    if depth_model is not None and not rgb:
+        fail("--depth-model applies to --rgb (fitting from the RGB images)")
+    if depth_model is not None and not depth_model.is_file():
+        fail(f"--depth-model {depth_model}: no such file")
+    if rgb and fits is not None:
+        fail("--fits evaluates saved cuboids: drop --rgb")
     names = _parse_list(frames, "--frames", str) if frames is not None else None
     with user_errors():
         config, auc_cm, applied = _config(
@@ -224,6 +236,8 @@ def evaluate(
             fits_dir=fits,
             save_fits_dir=output / "fits" if save_fits else None,
             weights_dir=weights,
+            rgb=rgb,
+            depth_model=depth_model,
         )
         n_runs = len(settings.seeds)
         columns = (
@@ -245,7 +259,7 @@ def evaluate(
                 )
 
             report = run(frame_list, config, settings, progress=on_frame)
-        label = _method_label(config, applied, fits)
+        label = _method_label(config, applied, fits) + (" from RGB" if rgb else "")
         out.print(results_table(report, label))
         if (table := gt_table(report)) is not None:
             out.print(table)
@@ -264,6 +278,8 @@ def evaluate(
                 "method": label,
                 "fits_dir": None if fits is None else str(fits.resolve()),
                 "weights_dir": None if weights is None else str(weights.resolve()),
+                "input": "rgb" if rgb else "depth",
+                "depth_model": None if depth_model is None else str(depth_model.resolve()),
             }
             for p in write_outputs(report, output, meta):
                 out.print(f"wrote {p}")
