@@ -1,10 +1,16 @@
 """Fitting speed and memory at the paper's settings: 480x640 depth, every 8th pixel (<= 4800 fitting
-points), 4096 hypotheses per step, at most 8 cuboids, numerical solver.
+points), 4096 hypotheses per step, at most 8 cuboids, numerical solver (or the neural one: --solver neural).
 
 Prints per-frame and mean per-stage timings (s) and the peak RSS of the process. Frames: synthetic NYU-like
-rooms from the scene generator (always) and the real frames in ../shared/data (when present).
+rooms from the scene generator (always) and the real frames in ../shared/data (when present). The solver and
+the sampler are built once, before the first frame (weights loading is not timed). 'total' is input loaded
+-> cuboids selected (FitInfo.timing_s); 'assign' (per-pixel labels, after selection) is not part of it.
 
     python benchmarks/bench_fit.py [--frames 5] [--fast] [--no-refine] [--sampler sequential]
+        [--solver numerical|neural] [--weights PATH] [--hypotheses 4096] [--seed 0]
+
+--weights: a folder (solver_v1.pt / sampler_v2.pt inside) or a .pt file; it goes to the neural solver and
+the learned sampler (the other solvers and samplers have no weights). None = the shipped weights.
 """
 
 from __future__ import annotations
@@ -40,7 +46,11 @@ def main() -> None:
     ap.add_argument("--frames", type=int, default=5, help="synthetic frames")
     ap.add_argument("--fast", action="store_true", help="approximate scoring (prescore on 600 points)")
     ap.add_argument("--no-refine", action="store_true")
-    ap.add_argument("--sampler", default="sequential")
+    ap.add_argument("--sampler", default="sequential", help="uniform | sequential | local | learned")
+    ap.add_argument("--solver", default="numerical", choices=("numerical", "neural"))
+    ap.add_argument(
+        "--weights", type=Path, default=None, help="weights folder or .pt (neural solver / learned sampler)"
+    )
     ap.add_argument("--hypotheses", type=int, default=4096)
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
@@ -48,7 +58,8 @@ def main() -> None:
     import torch
 
     from cuboidcli.fitting.config import FitConfig
-    from cuboidcli.fitting.pipeline import ensure_compiled, fit_depth
+    from cuboidcli.fitting.pipeline import ensure_compiled, fit_depth, make_solver
+    from cuboidcli.fitting.sampling import make_sampler
 
     t = time.perf_counter()
     ensure_compiled()
@@ -59,15 +70,33 @@ def main() -> None:
     cfg = FitConfig(
         hypotheses=args.hypotheses,
         sampler=args.sampler,
+        solver=args.solver,
         seed=args.seed,
         refine=not args.no_refine,
         prescore_points=600 if args.fast else 0,
     )
-    stages = ("prepare", "sample", "solve", "score", "refine", "update", "total")
+    if (
+        args.weights is not None
+        and args.weights.suffix == ".pt"
+        and (cfg.solver, cfg.sampler)
+        == (
+            "neural",
+            "learned",
+        )
+    ):
+        ap.error("--weights: with --solver neural and --sampler learned give a folder, not one .pt file")
+    t = time.perf_counter()
+    solver = make_solver(cfg, args.weights)
+    sampler = make_sampler(cfg.sampler, args.weights)
+    print(
+        f"solver {cfg.solver}, sampler {cfg.sampler}, weights {args.weights or 'shipped'}: "
+        f"built in {time.perf_counter() - t:.2f} s"
+    )
+    stages = ("prepare", "sample", "solve", "score", "refine", "update", "total", "assign")
     print(f"{'frame':28s} {'pts':>5s} {'|M|':>3s} {'steps':>5s} " + " ".join(f"{s:>7s}" for s in stages))
     rows = []
     for name, depth, cam in frames(args.frames):
-        cubs, info = fit_depth(depth, cam, cfg)
+        cubs, info = fit_depth(depth, cam, cfg, solver=solver, sampler=sampler)
         t = info.timing_s
         rows.append([t.get(s, 0.0) for s in stages])
         print(

@@ -76,6 +76,9 @@ def train_sampler_cmd(
         "unexplained", "--prior", help="'unexplained': maps on top of the sequential weights; 'none': plain."
     ),
     kappa_corr: float = typer.Option(1.0, "--kappa-corr", help="Weight of the map-correlation loss."),
+    tau_c_start: float = typer.Option(
+        1.0, "--tau-c-start", help="tau_c at epoch 0, m^2 (the paper's 1; 0.008 = the test value throughout)."
+    ),
     corr_mode: str = typer.Option(
         "positive", "--corr-mode", help="'positive': penalise positive correlations only; 'paper': the sum."
     ),
@@ -131,6 +134,7 @@ def train_sampler_cmd(
             samples_k=samples_k,
             alpha=alpha,
             kappa_corr=kappa_corr,
+            tau_c_start_sq_m2=tau_c_start,
             corr_mode=corr_mode,
             scenes_per_epoch=scenes_per_epoch,
             grid_step=grid_step,

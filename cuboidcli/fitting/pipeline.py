@@ -96,7 +96,10 @@ def make_solver(
         weights = None
         if weights_dir is not None:
             weights = Path(weights_dir)
-            weights = weights / "solver_v1.pt" if weights.is_dir() else weights
+            if weights.is_dir():
+                # a training or fine-tuning output folder; folders of the first release hold solver_v1.pt
+                named = [weights / n for n in ("solver_v2.pt", "solver_v1.pt")]
+                weights = next((p for p in named if p.is_file()), named[0])
         return NeuralSolver(weights=weights, device=device, bounds=bounds)
     if config.solver == "onnx":
         from cuboidcli.solvers.onnx import OnnxSolver
