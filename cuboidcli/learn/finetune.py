@@ -16,7 +16,8 @@ carries gradients:
   paper's training "relies on ground-truth depth"; measuring the loss on Y instead would let the depth
   network flatten the scene into something easy to fit.
 
-The loss of an instance is (1/K) sum_k [ clamp(E_k - mean E) log p(H_k) + E_k ], E_k = E_{h ~ p(h|H_k)}[l]:
+The loss of an instance is (1/K) sum_k [ clamp(E_k - mean E) log p(H_k) + E_k ], E_k = E_{h ~ p(h|H_k)}[l]
+with l clamped to at most ``loss_clamp`` (the paper's "clamp losses to an absolute maximum of 0.3"):
 the gradient estimate of the paper's Eq. 10, with the mean of the K expectations as baseline. Following
 the paper's fine-tuning column (appendix Table 7) alpha is 1000 and the regularisers are off by default.
 The states of Y and of Z are updated with the hypothesis of the best gain on Y between instances.
@@ -295,10 +296,15 @@ def scene_loss(
                 g_all = (combine(v_all, state_y[None]) - state_y[None]).sum(1) / n
             top = torch.topk(g_all, min(cfg.grad_top, g_all.shape[0])).indices
             c32, a32, r32 = c[top].float(), a[top].float(), r[top].float()
-            v_y = oai_per_cuboid(y.float(), c32, a32, r32, *kernel).double()  # (top, N)
+            # With RGB the gains on Y see the points as constants: the depth network learns through the
+            # cuboids its points produce (judged on Z), not by moving every point onto the selected cuboid.
+            y_count = y.float() if nets.depth is None else y.detach().float()
+            v_y = oai_per_cuboid(y_count, c32, a32, r32, *kernel).double()  # (top, N)
             v_z = v_y if nets.depth is None else oai_per_cuboid(z32, c32, a32, r32, *kernel).double()
             gains = (combine(v_y, state_y[None]) - state_y[None]).sum(1) / n
-            task = -combine(v_z, state_z[None]).sum(1) / n
+            # the paper clamps losses to |0.3|: a hypothesis that hides many true points (the leaky
+            # occlusion penalty is unbounded) would otherwise dominate the gradient of the expectation
+            task = (-combine(v_z, state_z[None]).sum(1) / n).clamp(max=cfg.loss_clamp)
             expected.append((torch.softmax(cfg.alpha * gains, 0) * task).sum())
             log_probs.append(set_log_prob(log_p, log_q, maps, idx))
             g = gains.detach()
@@ -478,8 +484,12 @@ def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> 
         },
     )
     if state is None and cfg.validate_initial and val_frames:
+        # the starting point is a candidate too: if fine-tuning never beats it, the written weights are
+        # the starting ones and the log says so
         record = validate(nets, val_frames, cfg, fit)
+        best = float(record["auc20cm_pct"])
         _log(out_dir, emit, {"event": "val", "epoch": 0, "initial": True, **record})
+        _weights_files(nets, out_dir, {"finetune": asdict(cfg), "epoch": 0, "val": record, "data": str(data)})
 
     while epoch < cfg.epochs:
         t_epoch = time.perf_counter()
