@@ -211,9 +211,12 @@ def fit(
     if image is not None and not image.exists():
         fail(f"image file not found: {image}")
     with user_errors():
+        from cuboidcli.bundles import default_weights_dir
         from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
         from cuboidcli.fitting.sampling import make_sampler
 
+        if weights is None:  # the shipped bundle that matches the input and the solver
+            weights = default_weights_dir(config.solver, rgb=depth is None, builtin_depth=depth_model is None)
         try:
             solver_obj = make_solver(config, weights, onnx, config.device)
             sampler_obj = make_sampler(config.sampler, weights, config.device)

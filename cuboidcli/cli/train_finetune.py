@@ -62,7 +62,7 @@ def train_finetune_cmd(
         None, "--depth-weights", help="Start: depth network .pt [default: the shipped one]."
     ),
     epochs: int = typer.Option(10, "--epochs", help="Epochs."),
-    lr: float = typer.Option(1e-5, "--lr", help="Adam learning rate of the sampler (the paper: 1e-7)."),
+    lr: float = typer.Option(1e-5, "--lr", help="Adam lr of the sampler (paper: 1e-7); 0: fixed."),
     solver_lr: float | None = typer.Option(None, "--solver-lr", help="Of the neural solver [default: --lr]."),
     depth_lr: float | None = typer.Option(None, "--depth-lr", help="Of the depth network [default: --lr]."),
     batch: int = typer.Option(2, "--batch", help="B: scenes per optimizer step."),

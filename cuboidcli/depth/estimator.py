@@ -36,6 +36,7 @@ from cuboidcli.depth.net import IMAGENET_MEAN, IMAGENET_STD, DepthNet, net_from_
 
 #: Versioned default weights, relative to the repository root.
 DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "depth_v1.pt"
+"""The pre-trained network; the default is the fine-tuned one when shipped (:mod:`cuboidcli.bundles`)."""
 
 KINDS = ("metric", "relative", "relative-inverse")
 
@@ -51,8 +52,12 @@ class DepthEstimator(Protocol):
 
 
 def default_weights_path() -> Path:
-    """The shipped weights (``models/depth_v1.pt``), or ``$CUBOIDS_DEPTH_WEIGHTS`` if set."""
-    return Path(os.environ.get("CUBOIDS_DEPTH_WEIGHTS", DEFAULT_WEIGHTS))
+    """The shipped weights (``models/rgb/depth_v2.pt``, fine-tuned end to end, else the pre-trained
+    ``models/depth_v1.pt``), or ``$CUBOIDS_DEPTH_WEIGHTS`` if set."""
+    from cuboidcli.bundles import default_depth_weights
+
+    env = os.environ.get("CUBOIDS_DEPTH_WEIGHTS")
+    return Path(env) if env else default_depth_weights()
 
 
 def check_rgb(rgb: np.ndarray, camera: Camera) -> None:

@@ -31,15 +31,13 @@ def weights_hashes(config: FitConfig, weights: Path | None) -> dict[str, dict]:
     """
     files: dict[str, Path] = {}
     if config.solver == "neural":
-        from cuboidcli.solvers.neural import default_weights_path
+        from cuboidcli.solvers.neural import resolve_weights
 
-        if weights is None:
-            files["solver"] = default_weights_path()
-        else:
-            files["solver"] = weights / "solver_v1.pt" if weights.is_dir() else weights
-    if config.sampler == "learned" and weights is not None:
-        found = sorted(weights.glob("sampler*.pt")) if weights.is_dir() else [weights]
-        files.update({f"sampler:{p.name}": p for p in found})
+        files["solver"] = resolve_weights(weights)
+    if config.sampler == "learned":
+        from cuboidcli.learn.sampler_net import weights_path
+
+        files[f"sampler:{weights_path(weights).name}"] = weights_path(weights)
     return {role: {"path": str(p), "sha256": _sha256(p)} for role, p in files.items() if p.is_file()}
 
 

@@ -301,6 +301,11 @@ def evaluate(
     """Evaluate ``frames`` once per seed; returns per-frame metrics, per-run aggregates and mean/std."""
     if not frames:
         raise InputError("no frames to evaluate (check --split, --frames and --limit)")
+    if settings.weights_dir is None:  # the shipped bundle that matches the input and the solver
+        from cuboidcli.bundles import default_weights_dir
+
+        bundle = default_weights_dir(config.solver, settings.rgb, settings.depth_model is None)
+        settings = replace(settings, weights_dir=bundle)
     if settings.fits_dir is None:
         check_estimator(config, settings.weights_dir)
     seeds = settings.seeds

@@ -91,16 +91,9 @@ def make_solver(
 
         return NumericalSolver(bounds=bounds, lr=config.solver_lr, iters=config.solver_iters)
     if config.solver == "neural":
-        from cuboidcli.solvers.neural import NeuralSolver
+        from cuboidcli.solvers.neural import NeuralSolver, resolve_weights
 
-        weights = None
-        if weights_dir is not None:
-            weights = Path(weights_dir)
-            if weights.is_dir():
-                # a training or fine-tuning output folder; folders of the first release hold solver_v1.pt
-                named = [weights / n for n in ("solver_v2.pt", "solver_v1.pt")]
-                weights = next((p for p in named if p.is_file()), named[0])
-        return NeuralSolver(weights=weights, device=device, bounds=bounds)
+        return NeuralSolver(weights=resolve_weights(weights_dir), device=device, bounds=bounds)
     if config.solver == "onnx":
         from cuboidcli.solvers.onnx import OnnxSolver
 

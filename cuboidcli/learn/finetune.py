@@ -81,7 +81,8 @@ class FinetuneConfig:
     """neural (fine-tuned too) | numerical (implicit-function gradients; not trained)."""
     epochs: int = 10
     lr: float = 1e-5
-    """Adam learning rate of the sampling-weight network (the paper: 1e-7 for 25 GPU epochs)."""
+    """Adam learning rate of the sampling-weight network (the paper: 1e-7 for 25 GPU epochs); 0 keeps a
+    network fixed (also for solver_lr and depth_lr)."""
     solver_lr: float | None = None
     """Of the neural solver; None = lr."""
     depth_lr: float | None = None
@@ -138,8 +139,8 @@ class FinetuneConfig:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
         for name in ("lr", "solver_lr", "depth_lr"):
             value = getattr(self, name)
-            if value is not None and not value > 0:
-                raise ValueError(f"{name} must be positive, got {value}")
+            if value is not None and not value >= 0:
+                raise ValueError(f"{name} must be positive (or 0: keep the network fixed), got {value}")
 
 
 @dataclass
@@ -432,8 +433,18 @@ def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> 
         module.train()
     if nets.depth is not None:
         nets.depth.eval()
-    rates = {"sampler": cfg.lr, "solver": cfg.solver_lr or cfg.lr, "depth": cfg.depth_lr or cfg.lr}
-    groups = [{"params": list(m.parameters()), "lr": rates[k]} for k, m in nets.modules().items()]
+    rates = {
+        "sampler": cfg.lr,
+        "solver": cfg.lr if cfg.solver_lr is None else cfg.solver_lr,
+        "depth": cfg.lr if cfg.depth_lr is None else cfg.depth_lr,
+    }
+    groups = []
+    for name, module in nets.modules().items():
+        module.requires_grad_(rates[name] > 0)  # a fixed network needs no gradients
+        if rates[name] > 0:
+            groups.append({"params": list(module.parameters()), "lr": rates[name]})
+    if not groups:
+        raise ValueError("every learning rate is 0: nothing to fine-tune")
     opt = torch.optim.Adam(groups)
     gen = torch.Generator().manual_seed(cfg.seed + 1)
     epoch, best, step = 0, -math.inf, 0

@@ -18,7 +18,7 @@ from cuboidcli.learn.solver_net import SolverNet, net_from_checkpoint
 from cuboidcli.solvers.base import SizeBounds
 
 #: Versioned default weights, relative to the repository root.
-DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "solver_v1.pt"
+DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "solver_v2.pt"
 
 #: Sets per forward chunk on the CPU: 512 x 6 points keep the activations (~1 MB per layer) in the cache,
 #: which made the 4096-set forward pass about 1.5x faster than one big batch.
@@ -26,8 +26,20 @@ CHUNK_SETS = 512
 
 
 def default_weights_path() -> Path:
-    """The shipped weights (``models/solver_v1.pt``), or ``$CUBOIDS_SOLVER_WEIGHTS`` if set."""
+    """The shipped pre-trained weights (``models/solver_v2.pt``), or ``$CUBOIDS_SOLVER_WEIGHTS`` if set."""
     return Path(os.environ.get("CUBOIDS_SOLVER_WEIGHTS", DEFAULT_WEIGHTS))
+
+
+def resolve_weights(weights: str | os.PathLike | None) -> Path:
+    """The solver weights file for a ``--weights`` value: None = the shipped default; a folder = its
+    ``solver_v2.pt`` (``solver_v1.pt`` in folders of the first release); a file as given."""
+    if weights is None:
+        return default_weights_path()
+    path = Path(weights)
+    if path.is_dir():
+        named = [path / n for n in ("solver_v2.pt", "solver_v1.pt")]
+        return next((p for p in named if p.is_file()), named[0])
+    return path
 
 
 def load_solver_net(path: str | os.PathLike | None = None, device: str | torch.device = "cpu") -> SolverNet:

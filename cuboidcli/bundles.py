@@ -1,0 +1,36 @@
+"""Which shipped weights go together (the "bundles" in ``models/``).
+
+The learned parts are trained as sets: the sampling-weight network with the numerical solver on true depth
+(``models/``), fine-tuned together with the neural solver (``models/neural/``), or fine-tuned from RGB with
+the built-in depth network (``models/rgb/``). Each bundle is a folder in the layout ``--weights DIR`` reads
+(``sampler_v2.pt``, ``solver_v2.pt``, ``depth_v2.pt``). When the user gives no ``--weights``,
+:func:`default_weights_dir` picks the bundle that matches the configuration; a bundle that is not there
+falls back to the top-level ``models/`` files.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+#: The shipped weights (a source checkout or an editable install); ``$CUBOIDS_MODELS`` overrides it.
+MODELS_DIR = Path(os.environ.get("CUBOIDS_MODELS", Path(__file__).resolve().parents[1] / "models"))
+
+
+def default_weights_dir(solver: str, rgb: bool = False, builtin_depth: bool = True) -> Path | None:
+    """The bundle for a configuration, or None for the top-level defaults.
+
+    ``rgb``: the depth comes from the image; ``builtin_depth``: through the built-in network (a user's depth
+    model gets the depth-input sampler, which was not tuned for any particular network).
+    """
+    if rgb and builtin_depth and (MODELS_DIR / "rgb" / "sampler_v2.pt").is_file():
+        return MODELS_DIR / "rgb"
+    if solver == "neural" and (MODELS_DIR / "neural" / "solver_v2.pt").is_file():
+        return MODELS_DIR / "neural"
+    return None
+
+
+def default_depth_weights() -> Path:
+    """The built-in depth network: the RGB bundle's fine-tuned one, else the pre-trained ``depth_v1.pt``."""
+    tuned = MODELS_DIR / "rgb" / "depth_v2.pt"
+    return tuned if tuned.is_file() else MODELS_DIR / "depth_v1.pt"
