@@ -34,3 +34,30 @@ def default_depth_weights() -> Path:
     """The built-in depth network: the RGB bundle's fine-tuned one, else the pre-trained ``depth_v1.pt``."""
     tuned = MODELS_DIR / "rgb" / "depth_v2.pt"
     return tuned if tuned.is_file() else MODELS_DIR / "depth_v1.pt"
+
+
+#: A config key that only each kind of checkpoint has.
+_KIND_KEYS = {"sampler": "maps", "solver": "heads", "depth": "channels"}
+
+
+def checkpoint_kind(path: str | os.PathLike) -> str | None:
+    """"sampler", "solver" or "depth" for a weights file of ours (by its config keys), else None."""
+    import torch
+
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception:  # not a torch file, or not loadable without pickle: not one of ours
+        return None
+    config = ckpt.get("config") if isinstance(ckpt, dict) else None
+    if not isinstance(config, dict):
+        return None
+    return next((kind for kind, key in _KIND_KEYS.items() if key in config), None)
+
+
+def weights_for(kind: str, weights: str | os.PathLike | None) -> str | os.PathLike | None:
+    """What a component of ``kind`` should load for a ``--weights`` value: a folder as given (each part
+    picks its file in it), a ``.pt`` file if it holds this kind of network, else None (the shipped default:
+    ``--weights solver.pt`` with the learned sampler keeps the shipped sampler)."""
+    if weights is None or Path(weights).is_dir() or not Path(weights).is_file():
+        return weights
+    return weights if checkpoint_kind(weights) in (kind, None) else None

@@ -95,6 +95,8 @@ def parse_args(argv: list[str] | None = None) -> argparse.Namespace:
     ap.add_argument("--out", type=Path, required=True, help="output folder (results.json, tables.md)")
     ap.add_argument("--hypotheses", type=int, default=4096)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--grid-step", type=int, default=8, help="fitting grid step (4 for 320x240 frames)")
+    ap.add_argument("--runs", type=int, default=1, help="seeds SEED..SEED+R-1; the tables show the means")
     ap.add_argument("--workers", type=int, default=1, help="frame-parallel processes (default 1)")
     ap.add_argument("--weights-numerical", type=Path, default=None, help="weights for numerical-solver rows")
     ap.add_argument("--weights-neural", type=Path, default=None, help="weights for neural-solver rows")
@@ -245,9 +247,14 @@ def main(argv: list[str] | None = None) -> None:
             k += 1
             tag = f"[{k}/{total}] {ds_name}: sampler {row.sampler}, solver {row.solver}, input {row.label()}"
             config = FitConfig(
-                hypotheses=args.hypotheses, sampler=row.sampler, solver=row.solver, seed=args.seed
+                hypotheses=args.hypotheses,
+                sampler=row.sampler,
+                solver=row.solver,
+                seed=args.seed,
+                grid_step=args.grid_step,
             )
             settings = EvalSettings(
+                runs=args.runs,
                 seed=args.seed,
                 workers=args.workers,
                 weights_dir=row.weights_dir,
@@ -266,7 +273,7 @@ def main(argv: list[str] | None = None) -> None:
                 write_outputs(args.out, command, payload, "\n\n".join(tables))
                 continue
             elapsed = time.perf_counter() - t
-            agg = report.runs[0]
+            agg = report.runs[0] if args.runs == 1 else {k: v[0] for k, v in report.summary.items()}
             print(
                 f"{tag}: {elapsed:.1f} s ({len(frames)} frames; |M| {agg['cuboids']:.2f}, "
                 f"AUC@20 {agg.get('auc20cm_pct', math.nan):.1f} %)",

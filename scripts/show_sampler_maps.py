@@ -1,7 +1,8 @@
 """Save the learned sampler's Q sampling-weight maps for a frame as one PNG (RGB | map 1..Q), for the first
-step (empty state) of the estimator. Used to inspect what the network attends to.
+step (empty state) of the estimator, or with ``--after K`` for the step after K cuboids were selected (the
+estimator runs with the learned sampler first). Used to inspect what the network attends to.
 
-    python scripts/show_sampler_maps.py DATASET FRAME OUT.png [--weights DIR]
+    python scripts/show_sampler_maps.py DATASET FRAME OUT.png [--weights DIR] [--after K]
 """
 
 from __future__ import annotations
@@ -24,14 +25,22 @@ def main() -> None:
     ap.add_argument("frame")
     ap.add_argument("out")
     ap.add_argument("--weights", default=None)
+    ap.add_argument("--after", type=int, default=0, help="show the maps after this many selected cuboids")
     args = ap.parse_args()
     frame = next(f for f in list_frames(args.dataset) if f.name == args.frame)
     depth = frame.depth_m()
     prep = prepare_points(depth, frame.camera, 8)
     sampler = make_sampler("learned", args.weights)
-    ctx = SamplingContext(
-        prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, torch.zeros(prep.points.shape[0]), 0
-    )
+    state = torch.zeros(prep.points.shape[0])
+    if args.after > 0:
+        from cuboidcli.fitting.config import FitConfig
+        from cuboidcli.fitting.pipeline import fit_depth
+
+        config = FitConfig(sampler="learned", max_cuboids=args.after, hypotheses=1024)
+        cuboids, info = fit_depth(depth, frame.camera, config, sampler=sampler)
+        state = torch.from_numpy(info.state).float()
+        print(f"state after {len(cuboids)} cuboid(s)")
+    ctx = SamplingContext(prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, state, args.after)
     with torch.no_grad():
         p, q = sampler.distributions(ctx)
     hs, ws = prep.grid_shape

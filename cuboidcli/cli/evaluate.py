@@ -36,10 +36,12 @@ def _parse_list(text: str, what: str, cast=float) -> list:
 def _config(
     preset, sampler, solver, hypotheses, max_cuboids, grid_step, no_oai, refine, fast, auc, seed, device
 ):
-    from cuboidcli.evaluation.presets import resolve
+    from cuboidcli.evaluation.presets import PRESETS, resolve
 
     config, auc_cm, applied = resolve(preset)
     overrides = {"seed": seed, "device": resolve_device(device)}
+    if not any("sampler" in PRESETS[name].fit for name in applied):
+        overrides["sampler"] = "learned"  # the tool's default, as for cuboids fit
     if sampler is not None:
         if sampler not in ("uniform", "sequential", "learned"):
             fail(f"--sampler {sampler!r}: choose uniform, sequential or learned")
@@ -153,7 +155,7 @@ def evaluate(
         help="Baseline/variant: default, ours, ours-neural, seqransac-oai, seqransac, uniform, "
         "paper, outdoor; combine with commas (seqransac,outdoor).",
     ),
-    sampler: str = typer.Option(None, "--sampler", help="uniform | sequential | learned (default: preset)."),
+    sampler: str = typer.Option(None, "--sampler", help="uniform | sequential | learned [default: learned]."),
     solver: str = typer.Option(None, "--solver", help="numerical | neural (default: preset)."),
     hypotheses: int = typer.Option(None, "--hypotheses", help="Hypotheses per step |H| (default: 4096)."),
     max_cuboids: int = typer.Option(None, "--max-cuboids", help="At most this many cuboids (default: 8)."),

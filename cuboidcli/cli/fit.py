@@ -157,7 +157,7 @@ def fit(
     ),
     hypotheses: int = typer.Option(4096, "--hypotheses", help="Cuboid hypotheses per step |H|."),
     max_cuboids: int = typer.Option(8, "--max-cuboids", help="At most this many cuboids."),
-    sampler: str = typer.Option("sequential", "--sampler", help="sequential | local | uniform | learned."),
+    sampler: str = typer.Option("learned", "--sampler", help="learned | sequential | local | uniform."),
     solver: str = typer.Option("numerical", "--solver", help="numerical | neural | onnx."),
     weights: Path = typer.Option(
         None, "--weights", help="Folder with network weights [default: shipped models/]."
@@ -334,7 +334,7 @@ def demo(
         output=output / "sample_cuboids.json",
         hypotheses=4096,
         max_cuboids=8,
-        sampler="sequential",
+        sampler="learned",
         solver="numerical",
         weights=None,
         onnx=None,

@@ -31,13 +31,16 @@ def weights_hashes(config: FitConfig, weights: Path | None) -> dict[str, dict]:
     """
     files: dict[str, Path] = {}
     if config.solver == "neural":
+        from cuboidcli.bundles import weights_for
         from cuboidcli.solvers.neural import resolve_weights
 
-        files["solver"] = resolve_weights(weights)
+        files["solver"] = resolve_weights(weights_for("solver", weights))
     if config.sampler == "learned":
+        from cuboidcli.bundles import weights_for
         from cuboidcli.learn.sampler_net import weights_path
 
-        files[f"sampler:{weights_path(weights).name}"] = weights_path(weights)
+        path = weights_path(weights_for("sampler", weights))
+        files[f"sampler:{path.name}"] = path
     return {role: {"path": str(p), "sha256": _sha256(p)} for role, p in files.items() if p.is_file()}
 
 

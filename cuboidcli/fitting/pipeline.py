@@ -91,9 +91,11 @@ def make_solver(
 
         return NumericalSolver(bounds=bounds, lr=config.solver_lr, iters=config.solver_iters)
     if config.solver == "neural":
+        from cuboidcli.bundles import weights_for
         from cuboidcli.solvers.neural import NeuralSolver, resolve_weights
 
-        return NeuralSolver(weights=resolve_weights(weights_dir), device=device, bounds=bounds)
+        weights = resolve_weights(weights_for("solver", weights_dir))
+        return NeuralSolver(weights=weights, device=device, bounds=bounds)
     if config.solver == "onnx":
         from cuboidcli.solvers.onnx import OnnxSolver
 

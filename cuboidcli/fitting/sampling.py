@@ -143,7 +143,8 @@ def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:
     if name == "local":
         return LocalSampler()
     if name == "learned":
+        from cuboidcli.bundles import weights_for
         from cuboidcli.learn.sampler_net import LearnedSampler
 
-        return LearnedSampler.load(weights_dir, device=device)
+        return LearnedSampler.load(weights_for("sampler", weights_dir), device=device)
     raise ValueError(f"unknown sampler {name!r}; choose uniform, sequential, local or learned")
