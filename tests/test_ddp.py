@@ -1,5 +1,5 @@
-"""Multi-process training of the neural solver and the sampling-weight net: ``torchrun``, 2 CPU processes
-over gloo."""
+"""Multi-process training of the neural solver and the sampling-weight net, and end-to-end fine-tuning:
+``torchrun``, 2 CPU processes over gloo."""
 
 from __future__ import annotations
 
@@ -117,6 +117,101 @@ def test_torchrun_two_processes_train_one_sampler(tmp_path, sampler_dataset):
     assert last["world_size"] == 2 and state_sha256(last["state_dict"]) == hashes[0]
     best = torch.load(out / "sampler_v2.pt", weights_only=True)
     assert state_sha256(best["state_dict"]) == hashes[0]
+    # Every rank's draw generator is in the checkpoint, and the ranks drew differently.
+    assert len(last["draw_rngs"]) == 2 and not torch.equal(last["draw_rngs"][0], last["draw_rngs"][1])
+    assert torch.equal(last["draw_rng"], last["draw_rngs"][0])
+
+
+@pytest.fixture(scope="module")
+def finetune_setup(tmp_path_factory):
+    """As tests/test_finetune.py's rgbd_dataset and weights: simple_room with depth and a shaded RGB image
+    from 4 shifted 160x120 cameras (3 train, 1 val), a tiny sampler and a tiny depth net."""
+    import cv2
+
+    from cuboidcli.camera import Camera
+    from cuboidcli.cuboid import Cuboid
+    from cuboidcli.depth.net import DepthNet, DepthNetConfig
+    from cuboidcli.depth.net import checkpoint_dict as depth_checkpoint
+    from cuboidcli.io.dataset import write_cameras
+    from cuboidcli.learn.sampler_net import SamplerNet, SamplerNetConfig
+    from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
+    from cuboidcli.synth.render import render_boxes
+
+    camera = Camera.preset("nyu").scaled(0.25)
+    root = tmp_path_factory.mktemp("ddp_finetune")
+    data = root / "data"
+    (data / "depth").mkdir(parents=True)
+    (data / "rgb").mkdir()
+    names = [f"{i:06d}" for i in range(4)]
+    for i, name in enumerate(names):
+        shift = np.array([0.1 * i - 0.15, 0.0, 0.05 * i])
+        boxes = [Cuboid(c.center + shift, c.half_size, c.rotation) for c in simple_room()]
+        depth, _ = render_boxes(boxes, camera)
+        cv2.imwrite(str(data / "depth" / f"{name}.png"), np.round(depth * 1000).astype(np.uint16))
+        shade = np.clip(255 - depth * 40, 0, 255).astype(np.uint8)
+        cv2.imwrite(str(data / "rgb" / f"{name}.png"), np.stack([shade, shade // 2, 255 - shade], -1))
+    write_cameras(data, {name: camera for name in names})
+    (data / "splits.json").write_text(json.dumps({"train": names[:3], "val": names[3:]}))
+    torch.manual_seed(0)
+    sampler = SamplerNet(SamplerNetConfig(width=16, blocks=1, upsample=2, prior="unexplained"))
+    depth_net = DepthNet(
+        DepthNetConfig(channels=(4, 8, 8, 8, 8), input_height=64, input_width=80, canonical_focal_px=65.0)
+    )
+    torch.save(sampler_checkpoint(sampler), root / "sampler.pt")
+    torch.save(depth_checkpoint(depth_net), root / "depth.pt")
+    return root
+
+
+TINY_FINETUNE_RUN = ["--rgb", "--solver", "numerical", "--grid-step", "4", "--epochs", "1", "--batch", "2"]
+TINY_FINETUNE_RUN += ["--instances", "1", "--hypotheses", "8", "--val-hypotheses", "16", "--val-frames", "1"]
+# The sampler fixed (lr 0: no gradients at all), the depth network trained: the frozen-network case too.
+# With untrained networks nearly every task loss sits at the clamp, which has no gradient; seed 4 draws sets
+# with a (tiny) gradient on both ranks' scenes of the first step, so the depth network does move.
+TINY_FINETUNE_RUN += ["--lr", "0", "--depth-lr", "1e-3", "--seed", "4", "--backend", "gloo"]
+
+
+def test_torchrun_two_processes_finetune(tmp_path, finetune_setup):
+    from cuboidcli.learn.finetune import DEPTH_NAME
+    from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
+
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2"]
+    cmd += ["-m", "cuboidcli.cli.main", "train", "finetune", str(finetune_setup / "data"), *TINY_FINETUNE_RUN]
+    cmd += ["--sampler-weights", str(finetune_setup / "sampler.pt")]
+    cmd += ["--depth-weights", str(finetune_setup / "depth.pt"), "--out", str(out)]
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    env.pop("CUBOIDS_DIST_BACKEND", None)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+
+    # One set of outputs, written by rank 0 alone; rank 0 alone reports (on stderr).
+    names = sorted(p.name for p in out.iterdir())
+    assert names == ["config.json", DEPTH_NAME, "last.pt", "log.jsonl", SAMPLER_NAME]
+    assert proc.stderr.count("fine-tuning sampler") == 1 and proc.stderr.count("done: 1 epochs") == 1
+    records = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert [r["event"] for r in records].count("start") == 1
+    # The global batch stays 2 scenes: 3 training scenes make 2 steps (the second has none on rank 1), and
+    # the step records cover the whole batch (one instance per scene).
+    steps = [r for r in records if r["event"] == "step"]
+    assert [r["scenes"] for r in steps] == [2, 1]
+    vals = [r for r in records if r["event"] == "val"]
+    assert [bool(r.get("initial")) for r in vals] == [True, False] and all(r["frames"] == 1 for r in vals)
+    config = json.loads((out / "config.json").read_text())
+    assert config["distributed"] == {"world_size": 2, "backend": "gloo"}
+
+    # Each rank hashed its own final weights: the replicas are bit-identical and rank 0 saved them.
+    (end,) = [r for r in records if r["event"] == "end"]
+    hashes = end["param_sha256"]
+    assert end["world_size"] == 2 and len(hashes) == 2 and hashes[0] == hashes[1]
+    last = torch.load(out / "last.pt", weights_only=True)
+    flat = {f"{k}.{n}": t for k, sd in last["nets"].items() for n, t in sd.items()}
+    assert last["world_size"] == 2 and state_sha256(flat) == hashes[0]
+    # The depth network moved (so equal hashes mean the gradients were summed), the fixed sampler did not.
+    start = torch.load(finetune_setup / "depth.pt", weights_only=True)["state_dict"]
+    moved = any(not torch.equal(start[k], v) for k, v in last["nets"]["depth"].items())
+    assert moved, "no gradient at all: pick another --seed whose draws are not all at the loss clamp"
+    start = torch.load(finetune_setup / "sampler.pt", weights_only=True)["state_dict"]
+    assert all(torch.equal(start[k], v) for k, v in last["nets"]["sampler"].items())
     # Every rank's draw generator is in the checkpoint, and the ranks drew differently.
     assert len(last["draw_rngs"]) == 2 and not torch.equal(last["draw_rngs"][0], last["draw_rngs"][1])
     assert torch.equal(last["draw_rng"], last["draw_rngs"][0])

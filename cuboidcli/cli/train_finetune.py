@@ -65,7 +65,7 @@ def train_finetune_cmd(
     lr: float = typer.Option(1e-5, "--lr", help="Adam lr of the sampler (paper: 1e-7); 0: fixed."),
     solver_lr: float | None = typer.Option(None, "--solver-lr", help="Of the neural solver [default: --lr]."),
     depth_lr: float | None = typer.Option(None, "--depth-lr", help="Of the depth network [default: --lr]."),
-    batch: int = typer.Option(2, "--batch", help="B: scenes per optimizer step."),
+    batch: int = typer.Option(2, "--batch", help="B: scenes per optimizer step (over all processes)."),
     hypotheses: int = typer.Option(32, "--hypotheses", help="|H|: hypotheses per sampled set."),
     instances: int = typer.Option(8, "--instances", help="|M|: sequential instances per scene."),
     samples_k: int = typer.Option(2, "--samples-k", help="K: hypothesis sets per instance (>= 2)."),
@@ -84,11 +84,23 @@ def train_finetune_cmd(
     max_minutes: float | None = typer.Option(
         None, "--max-minutes", help="Stop after the epoch during which this much time has passed."
     ),
+    backend: str | None = typer.Option(
+        None, "--backend", help="torch.distributed backend under torchrun (gloo) [default: gloo on the CPU]."
+    ),
 ) -> None:
     """Fine-tune sampler + neural solver (depth input) or depth net + sampler (+ solver) (--rgb) end to end.
 
     The best weights (validation AUC@20) go to OUT as sampler_v2.pt, solver_v2.pt and depth_v2.pt; use
     them with: cuboids fit ... --weights OUT (and --depth-model OUT/depth_v2.pt for RGB input).
+
+    Multi-process (data parallel, one process per group of CPU cores), e.g. 2 processes:
+
+        torchrun --standalone --nproc_per_node 2 -m cuboidcli.cli.main train finetune DATA --out OUT
+
+    The --batch scenes of a step are split over the processes (use a multiple of their number), each
+    process drawing its own hypotheses, and the gradients averaged; the val frames are split too.
+    Process 0 alone prints and writes OUT, which must be shared for --resume; resuming with the same
+    number of processes continues the run exactly.
     """
     from cuboidcli.learn.finetune import FinetuneConfig, finetune
 
@@ -138,6 +150,7 @@ def train_finetune_cmd(
                 depth_weights=depth_weights,
                 resume=resume,
                 on_event=_print_event,
+                backend=backend,
             )
         except (ValueError, FileNotFoundError) as e:
             fail(str(e))

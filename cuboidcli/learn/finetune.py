@@ -27,6 +27,29 @@ network when ``rgb``), scores them against the TRUE depth with the paper's metri
 of the best AUC@20 cm. Files in ``out_dir``: ``config.json``, ``log.jsonl``, ``last.pt`` (training state,
 ``resume`` continues from it), and the best weights under the names ``cuboids fit --weights DIR`` reads:
 ``sampler_v2.pt``, ``solver_v2.pt`` (neural solver) and ``depth_v2.pt`` (RGB). The module prints nothing.
+
+Multi-process (``torchrun``, see :mod:`cuboidcli.learn.distributed`), as the sampler's own training does
+it (:mod:`cuboidcli.learn.sampler_train`): every rank holds replicas of the networks and loads every
+training scene. The B scenes of a step are split over the W ranks, rank r taking the step's scenes r,
+r + W, ... (a rank may get none, e.g. in a last partial batch), so ``batch`` stays the global number of
+scenes per step and an epoch has as many steps as in one process; use a ``batch`` that is a multiple of W
+to keep every rank busy. Each rank scales its scene losses by 1 / B of the global batch and the gradients
+are summed over the ranks by one all-reduce per step before the Adam step
+(:meth:`~cuboidcli.learn.distributed.DistContext.sum_gradients`; a fixed network, lr 0, has no gradients
+and takes no part), so every rank steps with the mean gradient of the global batch and the replicas stay
+bit-identical (the depth network's batch norm runs in eval mode, so no statistics drift apart). Rank r
+draws its hypotheses from its own generator (:func:`~cuboidcli.learn.sampler_train.draw_seed`; rank 0
+keeps the single-process stream), so a run is reproducible for a given seed and number of processes but
+differs from a single-process run. The step records of all ranks are gathered, so the log covers the
+whole batch. The val frames are split over the ranks the same way and their per-frame metrics gathered
+in frame order and aggregated on every rank, so the validation numbers equal a single process's (fitting
+is seeded per frame) and every rank takes the same best-weights decision. Rank 0 alone writes files and
+calls ``on_event``; the ``max_minutes`` decision is taken on its clock and broadcast, so all ranks stop
+after the same epoch. ``last.pt`` holds every rank's draw generator state (``draw_rngs``) and the
+``world_size``: resuming with the same number of processes continues the run exactly; with another
+number, the ranks the checkpoint has a state for restore it and the others start a fresh stream (a valid
+continuation, not the uninterrupted run). The ``end`` record then adds ``world_size`` and
+``param_sha256``, one hash of all the networks' final weights per rank, all equal when in sync.
 """
 
 from __future__ import annotations
@@ -51,6 +74,7 @@ from cuboidcli.fitting.sampling import draw_sets_and_maps
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.dataset import Frame
+from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.sampler_data import dataset_splits, epoch_order
 from cuboidcli.learn.sampler_loss import (
     CORR_MODES,
@@ -64,6 +88,7 @@ from cuboidcli.learn.sampler_net import LearnedSampler, SamplerNet
 from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
 from cuboidcli.learn.sampler_net import net_from_checkpoint as sampler_from_checkpoint
 from cuboidcli.learn.sampler_net import weights_path as sampler_weights_path
+from cuboidcli.learn.sampler_train import draw_seed
 
 STATE_KIND = "finetune-state"
 SOLVER_NAME = "solver_v2.pt"
@@ -328,8 +353,14 @@ def scene_loss(
     return torch.stack(losses).mean(), records
 
 
-def validate(nets: Nets, frames: list[Frame], cfg: FinetuneConfig, fit: FitConfig) -> dict:
-    """Fit the val frames with the current networks; the paper's metrics against the true depth."""
+def validate(
+    nets: Nets, frames: list[Frame], cfg: FinetuneConfig, fit: FitConfig, ctx: DistContext | None = None
+) -> dict:
+    """Fit the val frames with the current networks; the paper's metrics against the true depth.
+
+    With an active ``ctx`` (a collective: every rank calls it) rank r fits frames r, r + W, ... and the
+    per-frame metrics are gathered in frame order, so every rank returns the same numbers, equal to one
+    process's; ``seconds`` is this rank's wall time."""
     from cuboidcli.evaluation.metrics import aggregate, frame_metrics
     from cuboidcli.solvers.neural import NeuralSolver
     from cuboidcli.solvers.numerical import NumericalSolver
@@ -345,13 +376,16 @@ def validate(nets: Nets, frames: list[Frame], cfg: FinetuneConfig, fit: FitConfi
         from cuboidcli.depth.estimator import BuiltinDepthEstimator
 
         estimator = BuiltinDepthEstimator(net=nets.depth)
-    per_frame = []
+    ctx = ctx or DistContext()
+    mine = []
     start = time.perf_counter()
-    for frame in frames:
+    for frame in frames[ctx.rank :: ctx.world_size]:
         depth = frame.depth_m()
         fit_input = depth if estimator is None else estimator.predict(frame.rgb(), frame.camera)
         cuboids, _ = fit_depth(fit_input, frame.camera, config, solver=solver, sampler=sampler)
-        per_frame.append(frame_metrics(frame.name, depth, frame.camera, cuboids))
+        mine.append(frame_metrics(frame.name, depth, frame.camera, cuboids))
+    shards = ctx.gather(mine)
+    per_frame = [shards[i % ctx.world_size][i // ctx.world_size] for i in range(len(frames))]
     for module in nets.modules().values():
         module.train()
     if nets.depth is not None:
@@ -384,16 +418,20 @@ def finetune(
     resume: str | Path | None = None,
     on_event: Callable[[dict], None] | None = None,
     fit: FitConfig | None = None,
+    backend: str | None = None,
 ) -> dict:
     """Fine-tune end to end (see the module docstring); returns the final record.
 
     ``*_weights``: starting points (None = the shipped ones). ``resume``: a ``last.pt`` of this trainer;
     the run's schedule and networks come from it, only ``epochs``, ``threads``, ``device`` and
     ``max_minutes`` of ``cfg`` apply.
+
+    Launched by ``torchrun`` with ``WORLD_SIZE > 1``, this joins the process group for the duration of
+    the call (``backend``: None = gloo on the CPU, or ``$CUBOIDS_DIST_BACKEND``) and trains data parallel
+    as the module docstring describes; every rank must pass the same arguments. Only rank 0 calls
+    ``on_event`` and writes to ``out_dir``, which must be visible to every rank for ``resume``.
     """
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
-    emit = on_event or (lambda record: None)
     fit = fit or FitConfig()
     state = None
     if resume is not None:
@@ -406,26 +444,36 @@ def finetune(
     threads_before = torch.get_num_threads()
     torch.set_num_threads(cfg.threads)
     try:
-        return _run(
-            cfg, Path(data), out_dir, sampler_weights, solver_weights, depth_weights, state, emit, fit
-        )
+        with distributed(cfg.device, backend) as ctx:
+            if ctx.is_main:
+                out_dir.mkdir(parents=True, exist_ok=True)
+            emit = (on_event if ctx.is_main else None) or (lambda record: None)
+            weights = (sampler_weights, solver_weights, depth_weights)
+            return _run(ctx, cfg, Path(data), out_dir, weights, state, emit, fit)
     finally:
         torch.set_num_threads(threads_before)
 
 
-def _log(out_dir: Path, emit, record: dict) -> None:
+def _log(out_dir: Path, emit, ctx: DistContext, record: dict) -> None:
+    if not ctx.is_main:
+        return
     with (out_dir / "log.jsonl").open("a", encoding="utf-8") as f:
         f.write(json.dumps(record) + "\n")
     emit(record)
 
 
-def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> dict:
+def _nets_sha256(nets: Nets) -> str:
+    """One hash over the weights of all the networks of the run."""
+    return state_sha256({f"{k}.{n}": t for k, m in nets.modules().items() for n, t in m.state_dict().items()})
+
+
+def _run(ctx: DistContext, cfg, data, out_dir, weights, state, emit, fit) -> dict:
     from cuboidcli.solvers.implicit import polished
     from cuboidcli.solvers.numerical import NumericalSolver
 
     t_start = time.perf_counter()
     torch.manual_seed(cfg.seed)
-    nets = load_nets(cfg, sampler_w, solver_w, depth_w)
+    nets = load_nets(cfg, *weights)
     if state is not None:
         for name, module in nets.modules().items():
             module.load_state_dict(state["nets"][name])
@@ -445,14 +493,21 @@ def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> 
             groups.append({"params": list(module.parameters()), "lr": rates[name]})
     if not groups:
         raise ValueError("every learning rate is 0: nothing to fine-tune")
+    trained = [p for g in groups for p in g["params"]]
     opt = torch.optim.Adam(groups)
-    gen = torch.Generator().manual_seed(cfg.seed + 1)
+    gen = torch.Generator().manual_seed(draw_seed(cfg.seed, ctx.rank))  # rank 0: seed + 1
     epoch, best, step = 0, -math.inf, 0
     if state is not None:
         opt.load_state_dict(state["optimizer"])
+        # Nothing draws from the global RNG during training (the draws and the frame order have seeded
+        # generators of their own), so rank 0's saved state serves every rank.
         torch.set_rng_state(state["torch_rng"])
-        gen.set_state(state["draw_rng"])
         epoch, best, step = int(state["epoch"]), float(state["best"]), int(state["step"])
+        draw_rngs = state.get("draw_rngs") or [state["draw_rng"]]  # older checkpoints: rank 0's only
+        if ctx.rank < len(draw_rngs):
+            gen.set_state(draw_rngs[ctx.rank])
+        else:  # resumed on more processes than the checkpoint was written by
+            gen.manual_seed(draw_seed(cfg.seed, ctx.rank, epoch))
     numerical = polished(NumericalSolver(lr=fit.solver_lr, iters=fit.solver_iters))
 
     train_frames, val_frames, split = dataset_splits(data)
@@ -469,38 +524,48 @@ def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> 
         )
     if cfg.rgb and any(f.rgb_path is None for f in val_frames):
         raise ValueError("fine-tuning from RGB needs RGB images for the val frames too")
-    atomic_write_json(
-        out_dir / "config.json",
-        {
-            "finetune": asdict(cfg),
-            "fit": fit.to_dict(),
-            "data": str(data),
-            "split": split,
-            "train_frames": len(scenes),
-            "val_frames": len(val_frames),
-        },
-    )
+    if ctx.active:
+        # A collective check that every rank sees the same data and (resumed) weights: ranks that differ
+        # here would train replicas that silently drift apart.
+        mine = (_nets_sha256(nets), [s.name for s in scenes], [f.name for f in val_frames])
+        if any(other != mine for other in ctx.gather(mine)):
+            raise ValueError(
+                "the processes disagree on the training data or the networks' weights: every rank must "
+                "read the same dataset folder, starting weights (and --resume checkpoint)"
+            )
+    resolved = {
+        "finetune": asdict(cfg),
+        "fit": fit.to_dict(),
+        "data": str(data),
+        "split": split,
+        "train_frames": len(scenes),
+        "val_frames": len(val_frames),
+    }
     params = {k: sum(p.numel() for p in m.parameters()) for k, m in nets.modules().items()}
-    _log(
-        out_dir,
-        emit,
-        {
-            "event": "start",
-            "epoch": epoch,
-            "epochs": cfg.epochs,
-            "parameters": params,
-            "train_frames": len(scenes),
-            "val_frames": len(val_frames),
-            "split": split,
-        },
-    )
+    start = {
+        "event": "start",
+        "epoch": epoch,
+        "epochs": cfg.epochs,
+        "parameters": params,
+        "train_frames": len(scenes),
+        "val_frames": len(val_frames),
+        "split": split,
+    }
+    if ctx.active:
+        resolved["distributed"] = {"world_size": ctx.world_size, "backend": ctx.backend}
+        start["world_size"] = ctx.world_size
+    if ctx.is_main:
+        atomic_write_json(out_dir / "config.json", resolved)
+    _log(out_dir, emit, ctx, start)
     if state is None and cfg.validate_initial and val_frames:
         # the starting point is a candidate too: if fine-tuning never beats it, the written weights are
         # the starting ones and the log says so
-        record = validate(nets, val_frames, cfg, fit)
+        record = validate(nets, val_frames, cfg, fit, ctx)
         best = float(record["auc20cm_pct"])
-        _log(out_dir, emit, {"event": "val", "epoch": 0, "initial": True, **record})
-        _weights_files(nets, out_dir, {"finetune": asdict(cfg), "epoch": 0, "val": record, "data": str(data)})
+        _log(out_dir, emit, ctx, {"event": "val", "epoch": 0, "initial": True, **record})
+        if ctx.is_main:
+            meta = {"finetune": asdict(cfg), "epoch": 0, "val": record, "data": str(data)}
+            _weights_files(nets, out_dir, meta)
 
     while epoch < cfg.epochs:
         t_epoch = time.perf_counter()
@@ -511,17 +576,22 @@ def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> 
             batch = order[b : b + cfg.batch]
             opt.zero_grad(set_to_none=True)
             records = []
-            for i in batch:
+            # This rank's share of the step's scenes, each scaled by 1 / B of the global batch: the sum over
+            # the ranks of these partial gradients is the gradient of the global batch.
+            for i in batch[ctx.rank :: ctx.world_size]:
                 loss, recs = scene_loss(nets, scenes[i], cfg, fit, numerical, gen)
                 (loss / len(batch)).backward()
                 records += recs
+            ctx.sum_gradients(trained)
             opt.step()
             step += 1
+            records = [r for shard in ctx.gather(records) for r in shard]  # in scene order per rank
             mean = {k: float(np.mean([r[k] for r in records])) for k in records[0]}
             epoch_records.append(mean)
             _log(
                 out_dir,
                 emit,
+                ctx,
                 {
                     "event": "step",
                     "epoch": epoch + 1,
@@ -534,31 +604,36 @@ def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> 
         epoch += 1
         improved, val_record = not val_frames, {}
         if val_frames:
-            val_record = validate(nets, val_frames, cfg, fit)
+            val_record = validate(nets, val_frames, cfg, fit, ctx)
             value = float(val_record["auc20cm_pct"])
             improved = value > best
             best = max(best, value)
-            _log(out_dir, emit, {"event": "val", "epoch": epoch, "best": improved, **val_record})
-        blob = {
-            "kind": STATE_KIND,
-            "config": asdict(cfg),
-            "fit_config": fit.to_dict(),
-            "nets": {k: m.state_dict() for k, m in nets.modules().items()},
-            "optimizer": opt.state_dict(),
-            "torch_rng": torch.get_rng_state(),
-            "draw_rng": gen.get_state(),
-            "epoch": epoch,
-            "step": step,
-            "best": best,
-        }
-        atomic_torch_save(blob, out_dir / "last.pt")
-        if improved:
-            meta = {"finetune": asdict(cfg), "epoch": epoch, "val": val_record, "data": str(data)}
-            _weights_files(nets, out_dir, meta)
+            _log(out_dir, emit, ctx, {"event": "val", "epoch": epoch, "best": improved, **val_record})
+        draw_rngs = ctx.gather(gen.get_state())  # a collective: every rank's generator goes into last.pt
+        if ctx.is_main:
+            blob = {
+                "kind": STATE_KIND,
+                "config": asdict(cfg),
+                "fit_config": fit.to_dict(),
+                "nets": {k: m.state_dict() for k, m in nets.modules().items()},
+                "optimizer": opt.state_dict(),
+                "torch_rng": torch.get_rng_state(),
+                "draw_rng": gen.get_state(),
+                "draw_rngs": draw_rngs,
+                "world_size": ctx.world_size,
+                "epoch": epoch,
+                "step": step,
+                "best": best,
+            }
+            atomic_torch_save(blob, out_dir / "last.pt")
+            if improved:
+                meta = {"finetune": asdict(cfg), "epoch": epoch, "val": val_record, "data": str(data)}
+                _weights_files(nets, out_dir, meta)
         summary = {k: float(np.mean([r[k] for r in epoch_records])) for k in epoch_records[0]}
         _log(
             out_dir,
             emit,
+            ctx,
             {
                 "event": "epoch",
                 "epoch": epoch,
@@ -567,9 +642,12 @@ def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> 
                 "seconds": time.perf_counter() - t_epoch,
             },
         )
-        if cfg.max_minutes is not None and time.perf_counter() - t_start > 60.0 * cfg.max_minutes:
-            _log(out_dir, emit, {"event": "stop", "epoch": epoch, "reason": "max_minutes"})
-            break
+        if cfg.max_minutes is not None:
+            # Rank 0's clock decides for every rank: ranks that disagree would deadlock in the next step.
+            over = time.perf_counter() - t_start > 60.0 * cfg.max_minutes
+            if ctx.broadcast_float(float(over)) > 0.5:
+                _log(out_dir, emit, ctx, {"event": "stop", "epoch": epoch, "reason": "max_minutes"})
+                break
     final = {
         "event": "end",
         "epochs_done": epoch,
@@ -577,5 +655,10 @@ def _run(cfg, data, out_dir, sampler_w, solver_w, depth_w, state, emit, fit) -> 
         "out": str(out_dir),
         "seconds": time.perf_counter() - t_start,
     }
-    _log(out_dir, emit, final)
+    if ctx.active:
+        final["world_size"] = ctx.world_size
+        final["param_sha256"] = ctx.gather(_nets_sha256(nets))
+    _log(out_dir, emit, ctx, final)
+    # Rank 0 finishes its files before any rank tears the process group down.
+    ctx.barrier()
     return final
