@@ -2,10 +2,10 @@
 
 The learned parts are trained as sets: the sampling-weight network with the numerical solver on true depth
 (``models/``), fine-tuned together with the neural solver (``models/neural/``), or fine-tuned from RGB with
-the built-in depth network (``models/rgb/``). Each bundle is a folder in the layout ``--weights DIR`` reads
-(``sampler_v2.pt``, ``solver_v2.pt``, ``depth_v2.pt``). When the user gives no ``--weights``,
-:func:`default_weights_dir` picks the bundle that matches the configuration; a bundle that is not there
-falls back to the top-level ``models/`` files.
+the built-in depth network (``models/rgb/``, opt-in: see :func:`default_depth_weights`). Each bundle is a
+folder in the layout ``--weights DIR`` reads (``sampler_v2.pt``, ``solver_v2.pt``, ``depth_v2.pt``). When
+the user gives no ``--weights``, :func:`default_weights_dir` picks the bundle that matches the
+configuration; a bundle that is not there falls back to the top-level ``models/`` files.
 """
 
 from __future__ import annotations
@@ -31,9 +31,13 @@ def default_weights_dir(solver: str, rgb: bool = False, builtin_depth: bool = Tr
 
 
 def default_depth_weights() -> Path:
-    """The built-in depth network: the RGB bundle's fine-tuned one, else the pre-trained ``depth_v1.pt``."""
-    tuned = MODELS_DIR / "rgb" / "depth_v2.pt"
-    return tuned if tuned.is_file() else MODELS_DIR / "depth_v1.pt"
+    """The built-in depth network's default weights: the pre-trained ``models/depth_v1.pt``.
+
+    The end-to-end fine-tuned network (``models/rgb/depth_v2.pt``) scores better cuboids on the synthetic
+    test split but worse on the real sample photos (models/rgb/README.md), so it is opt-in:
+    ``--depth-model models/rgb/depth_v2.pt``.
+    """
+    return MODELS_DIR / "depth_v1.pt"
 
 
 #: A config key that only each kind of checkpoint has.

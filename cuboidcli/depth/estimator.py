@@ -52,8 +52,8 @@ class DepthEstimator(Protocol):
 
 
 def default_weights_path() -> Path:
-    """The shipped weights (``models/rgb/depth_v2.pt``, fine-tuned end to end, else the pre-trained
-    ``models/depth_v1.pt``), or ``$CUBOIDS_DEPTH_WEIGHTS`` if set."""
+    """The shipped weights (``models/depth_v1.pt``, see :func:`cuboidcli.bundles.default_depth_weights`),
+    or ``$CUBOIDS_DEPTH_WEIGHTS`` if set."""
     from cuboidcli.bundles import default_depth_weights
 
     env = os.environ.get("CUBOIDS_DEPTH_WEIGHTS")
