@@ -291,3 +291,19 @@ def test_cli_trains_and_reports_errors(tmp_path, tiny_dataset):
     assert bad.exit_code == 2 and "dataset folder not found" in bad.output
     bad = runner.invoke(app, ["sampler", str(tiny_dataset), "--samples-k", "1", "--out", str(out)])
     assert bad.exit_code == 2 and "samples_k" in bad.output
+
+
+def test_trainers_read_the_official_nyu_files(tmp_path):
+    """A folder with nyu_depth_v2_labeled.mat + splits.mat gives the paper's train/val split."""
+    from cuboidcli.evaluation.raycast import render_depth
+    from cuboidcli.learn.sampler_data import dataset_splits, prepare_scenes
+    from tests.test_evaluate import scene, write_labeled_mat, write_splits_v5
+
+    cam = Camera.preset("nyu").with_size(80, 60)
+    depths = np.stack([render_depth(cam, scene(i)) for i in range(4)])
+    write_labeled_mat(tmp_path / "nyu_depth_v2_labeled.mat", depths, np.zeros((4, 60, 80, 3), np.uint8))
+    write_splits_v5(tmp_path / "splits.mat", np.array([2, 4]), np.array([1, 3]))
+    train, val, note = dataset_splits(tmp_path)
+    assert [f.name for f in train] == ["nyu_0001", "nyu_0003"] and val == [] and "NYU" in note
+    scenes = prepare_scenes(train, 2, 6)
+    assert len(scenes) == 2 and scenes[0].prep.points.shape[0] > 100

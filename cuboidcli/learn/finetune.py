@@ -131,6 +131,8 @@ class FinetuneConfig:
     seed: int = 0
     threads: int = 1
     device: str = "cpu"
+    workers: int = 1
+    """Threads reading and preparing the training frames."""
     val_hypotheses: int = 512
     val_frames: int | None = None
     validate_initial: bool = True
@@ -159,6 +161,7 @@ class FinetuneConfig:
             "threads",
             "val_hypotheses",
             "grad_top",
+            "workers",
         ):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
@@ -210,6 +213,11 @@ def load_scene(frame: Frame, grid_step: int, rgb_size: tuple[int, int] | None) -
         uv = np.stack([u.reshape(-1), v.reshape(-1)], 1)[prep.grid_index.numpy()]
         scene.uv = torch.from_numpy(uv)
     return scene
+
+
+def _has_rgb(frame) -> bool:
+    """Whether a frame has a colour image (dataset folders: an rgb file; NYU's .mat: always)."""
+    return getattr(frame, "rgb_path", True) is not None
 
 
 def predicted_grid(depth_net, scene: Scene) -> Tensor:
@@ -438,7 +446,7 @@ def finetune(
         state = torch.load(resume, map_location="cpu", weights_only=True)
         if not isinstance(state, dict) or state.get("kind") != STATE_KIND:
             raise ValueError(f"{resume} is not a fine-tuning checkpoint (give OUT/last.pt)")
-        keep = {k: getattr(cfg, k) for k in ("epochs", "threads", "device", "max_minutes")}
+        keep = {k: getattr(cfg, k) for k in ("epochs", "threads", "device", "max_minutes", "workers")}
         cfg = replace(FinetuneConfig(**state["config"]), **keep)
         fit = FitConfig(**state["fit_config"])
     threads_before = torch.get_num_threads()
@@ -516,13 +524,20 @@ def _run(ctx: DistContext, cfg, data, out_dir, weights, state, emit, fit) -> dic
     rgb_size = None
     if nets.depth is not None:
         rgb_size = (nets.depth.config.input_height, nets.depth.config.input_width)
-    scenes = [s for s in (load_scene(f, cfg.grid_step, rgb_size) for f in train_frames) if s is not None]
+    if cfg.workers > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(cfg.workers) as pool:
+            loaded = list(pool.map(lambda f: load_scene(f, cfg.grid_step, rgb_size), train_frames))
+    else:
+        loaded = [load_scene(f, cfg.grid_step, rgb_size) for f in train_frames]
+    scenes = [s for s in loaded if s is not None]
     if not scenes:
         raise ValueError(
             f"no usable training frames in {data} (each needs >= 6 valid points"
             + (" and an RGB image)" if cfg.rgb else ")")
         )
-    if cfg.rgb and any(f.rgb_path is None for f in val_frames):
+    if cfg.rgb and any(not _has_rgb(f) for f in val_frames):
         raise ValueError("fine-tuning from RGB needs RGB images for the val frames too")
     if ctx.active:
         # A collective check that every rank sees the same data and (resumed) weights: ranks that differ

@@ -28,8 +28,16 @@ class TrainScene:
 
 
 def dataset_splits(root: str | Path) -> tuple[list[Frame], list[Frame], str]:
-    """(train frames, val frames, how the split was made) of a dataset folder."""
+    """(train frames, val frames, how the split was made) of a dataset folder.
+
+    A folder with the official NYU Depth v2 files (``nyu_depth_v2_labeled.mat`` + ``splits.mat``) gives the
+    paper's split: train = the first 600 of the official training frames, val = the other 195.
+    """
+    from cuboidcli.evaluation.nyu import is_nyu_folder, list_nyu_frames
+
     root = Path(root)
+    if is_nyu_folder(root):
+        return list_nyu_frames(root, "train"), list_nyu_frames(root, "val"), "NYU Depth v2 splits.mat"
     frames = list_frames(root)
     if (root / "splits.json").is_file():
         splits = json.loads((root / "splits.json").read_text(encoding="utf-8"))
