@@ -36,6 +36,16 @@ def user_errors():
                 console.print(f"[yellow]warning:[/] {w.message}", highlight=False, soft_wrap=True)
 
 
+def check_training_paths(data, resume, out) -> None:
+    """The checks every ``cuboids train`` command makes of its DATA folder, ``--resume`` and ``--out``."""
+    if not data.is_dir():
+        fail(f"dataset folder not found: {data}")
+    if resume is not None and not resume.is_file():
+        fail(f"--resume {resume}: no such checkpoint (give OUT/last.pt)")
+    if out.exists() and not out.is_dir():
+        fail(f"--out {out} is a file; give a folder")
+
+
 def resolve_device(device: str) -> str:
     import torch
 

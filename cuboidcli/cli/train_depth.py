@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from cuboidcli.cli.common import console, fail, resolve_device, user_errors
+from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, user_errors
 
 _DEFAULTS_NOTE = "taken from the checkpoint with --resume"
 
@@ -128,12 +128,7 @@ def train_depth_cmd(
     """
     from cuboidcli.depth.train import RESUME_OVERRIDES, DepthTrainConfig, train_depth
 
-    if not data.is_dir():
-        fail(f"dataset folder not found: {data}")
-    if resume is not None and not resume.is_file():
-        fail(f"--resume {resume}: no such checkpoint (give OUT/last.pt)")
-    if out.exists() and not out.is_dir():
-        fail(f"--out {out} is a file; give a folder")
+    check_training_paths(data, resume, out)
     if resume is None and (out / "last.pt").is_file():
         fail(
             f"--out {out} already holds a training run; continue it with --resume {out / 'last.pt'} "

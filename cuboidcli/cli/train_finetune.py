@@ -10,7 +10,7 @@ from pathlib import Path
 
 import typer
 
-from cuboidcli.cli.common import console, fail, resolve_device, user_errors
+from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, user_errors
 
 
 def _print_event(record: dict) -> None:
@@ -105,12 +105,7 @@ def train_finetune_cmd(
     """
     from cuboidcli.learn.finetune import FinetuneConfig, finetune
 
-    if not data.is_dir():
-        fail(f"dataset folder not found: {data}")
-    if resume is not None and not resume.is_file():
-        fail(f"--resume {resume}: no such checkpoint (give OUT/last.pt)")
-    if out.exists() and not out.is_dir():
-        fail(f"--out {out} is a file; give a folder")
+    check_training_paths(data, resume, out)
     for name, path in (("--solver-weights", solver_weights), ("--depth-weights", depth_weights)):
         if path is not None and not path.is_file():
             fail(f"{name} {path}: no such file")

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from cuboidcli.cli.common import console, fail, resolve_device, user_errors
+from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, user_errors
 
 
 def _print_event(record: dict) -> None:
@@ -116,12 +116,7 @@ def train_sampler_cmd(
     from cuboidcli.learn.sampler_net import SamplerNetConfig
     from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler
 
-    if not data.is_dir():
-        fail(f"dataset folder not found: {data}")
-    if resume is not None and not resume.is_file():
-        fail(f"--resume {resume}: no such checkpoint (give OUT/last.pt)")
-    if out.exists() and not out.is_dir():
-        fail(f"--out {out} is a file; give a folder")
+    check_training_paths(data, resume, out)
     if blocks < 0:
         fail(f"--blocks must be at least 0 (got {blocks})")
     device = resolve_device(device)
