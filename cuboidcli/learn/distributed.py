@@ -16,12 +16,15 @@ from __future__ import annotations
 
 import hashlib
 import os
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import TypeVar
 
 import torch
 import torch.distributed as dist
+
+T = TypeVar("T")
 
 #: Overrides the process-group backend when no explicit one is passed (gloo, nccl, ...).
 BACKEND_ENV = "CUBOIDS_DIST_BACKEND"
@@ -85,6 +88,16 @@ class DistContext:
         out: list[object] = [None] * self.world_size
         dist.all_gather_object(out, obj)
         return out
+
+    def share(self, items: Sequence[T]) -> Sequence[T]:
+        """This rank's part of ``items``: items r, r + W, r + 2W, ... (all of them in one process)."""
+        return items[self.rank :: self.world_size]
+
+    def gather_shares(self, mine: list, total: int) -> list:
+        """Per-item results of every rank's :meth:`share` of ``total`` items, back in item order, on every
+        rank (a collective)."""
+        shards = self.gather(mine)
+        return [shards[i % self.world_size][i // self.world_size] for i in range(total)]
 
     def barrier(self) -> None:
         if self.active:

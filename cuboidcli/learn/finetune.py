@@ -387,13 +387,12 @@ def validate(
     ctx = ctx or DistContext()
     mine = []
     start = time.perf_counter()
-    for frame in frames[ctx.rank :: ctx.world_size]:
+    for frame in ctx.share(frames):
         depth = frame.depth_m()
         fit_input = depth if estimator is None else estimator.predict(frame.rgb(), frame.camera)
         cuboids, _ = fit_depth(fit_input, frame.camera, config, solver=solver, sampler=sampler)
         mine.append(frame_metrics(frame.name, depth, frame.camera, cuboids))
-    shards = ctx.gather(mine)
-    per_frame = [shards[i % ctx.world_size][i // ctx.world_size] for i in range(len(frames))]
+    per_frame = ctx.gather_shares(mine, len(frames))
     for module in nets.modules().values():
         module.train()
     if nets.depth is not None:
@@ -593,7 +592,7 @@ def _run(ctx: DistContext, cfg, data, out_dir, weights, state, emit, fit) -> dic
             records = []
             # This rank's share of the step's scenes, each scaled by 1 / B of the global batch: the sum over
             # the ranks of these partial gradients is the gradient of the global batch.
-            for i in batch[ctx.rank :: ctx.world_size]:
+            for i in ctx.share(batch):
                 loss, recs = scene_loss(nets, scenes[i], cfg, fit, numerical, gen)
                 (loss / len(batch)).backward()
                 records += recs

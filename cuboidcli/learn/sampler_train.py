@@ -242,7 +242,7 @@ def validate(
     with_metrics = metrics_available()
     start = time.perf_counter()
     results = []  # (inlier fraction, cuboids, metrics or None) of this rank's frames
-    for frame in frames[ctx.rank :: ctx.world_size]:
+    for frame in ctx.share(frames):
         depth = frame.depth_m()
         cuboids, info = fit_depth(depth, frame.camera, config, solver=solver, sampler=sampler)
         metrics = None
@@ -252,8 +252,7 @@ def validate(
             metrics = frame_metrics(frame.name, depth, frame.camera, cuboids)
         results.append((sum(info.gains) / max(info.n_points, 1), len(cuboids), metrics))
     net.train()
-    shards = ctx.gather(results)
-    ordered = [shards[i % ctx.world_size][i // ctx.world_size] for i in range(len(frames))]
+    ordered = ctx.gather_shares(results, len(frames))
     fractions = [r[0] for r in ordered]
     counts = [r[1] for r in ordered]
     per_frame = [r[2] for r in ordered]
@@ -355,7 +354,7 @@ class _Run:
             # The mean over the step's scenes and instances, on all ranks together: the sum over the ranks
             # of these partial gradients is the gradient of the global batch.
             scale = 1.0 / (len(batch) * cfg.instances)
-            for i in batch[ctx.rank :: ctx.world_size]:
+            for i in ctx.share(batch):
                 records += train_scene(
                     self.net, self.scenes[i].prep, self.solver, lp, cfg.instances, self.gen, scale
                 )
