@@ -49,3 +49,30 @@ def room_png(tmp_path, room_depth):
     path = tmp_path / "room_depth.png"
     cv2.imwrite(str(path), np.round(room_depth[0] * 1000).astype(np.uint16))
     return path
+
+
+def write_room_dataset(root: Path, camera: Camera, rgb: bool = False) -> list[str]:
+    """Four frames of :func:`simple_room` seen from slightly shifted cameras, in the dataset layout (depth in
+    mm, optionally a shaded RGB image), split 3 train / 1 val. Returns the frame names."""
+    import json
+
+    import cv2
+
+    from cuboidcli.io.dataset import write_cameras
+    from cuboidcli.synth.render import render_boxes
+
+    (root / "depth").mkdir(parents=True)
+    if rgb:
+        (root / "rgb").mkdir()
+    names = [f"{i:06d}" for i in range(4)]
+    for i, name in enumerate(names):
+        shift = np.array([0.1 * i - 0.15, 0.0, 0.05 * i])
+        boxes = [Cuboid(c.center + shift, c.half_size, c.rotation) for c in simple_room()]
+        depth, _ = render_boxes(boxes, camera)
+        cv2.imwrite(str(root / "depth" / f"{name}.png"), np.round(depth * 1000).astype(np.uint16))
+        if rgb:
+            shade = np.clip(255 - depth * 40, 0, 255).astype(np.uint8)
+            cv2.imwrite(str(root / "rgb" / f"{name}.png"), np.stack([shade, shade // 2, 255 - shade], -1))
+    write_cameras(root, {name: camera for name in names})
+    (root / "splits.json").write_text(json.dumps({"train": names[:3], "val": names[3:]}))
+    return names

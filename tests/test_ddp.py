@@ -8,13 +8,12 @@ import os
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 import torch
 import torch.distributed as dist
 
 from cuboidcli.learn.distributed import state_sha256
-from tests.conftest import simple_room
+from tests.conftest import write_room_dataset
 
 pytestmark = pytest.mark.skipif(
     not dist.is_available() or not dist.is_gloo_available(),
@@ -59,24 +58,10 @@ def test_torchrun_two_processes_train_one_model(tmp_path):
 def sampler_dataset(tmp_path_factory):
     """As tests/test_sampler_train.py's tiny_dataset: simple_room from 4 shifted 160x120 cameras, 3 train,
     1 val."""
-    import cv2
-
     from cuboidcli.camera import Camera
-    from cuboidcli.cuboid import Cuboid
-    from cuboidcli.io.dataset import write_cameras
-    from cuboidcli.synth.render import render_boxes
 
-    camera = Camera.preset("nyu").scaled(0.25)
     root = tmp_path_factory.mktemp("ddp_sampler_data")
-    (root / "depth").mkdir()
-    names = [f"{i:06d}" for i in range(4)]
-    for i, name in enumerate(names):
-        shift = np.array([0.1 * i - 0.15, 0.0, 0.05 * i])
-        boxes = [Cuboid(c.center + shift, c.half_size, c.rotation) for c in simple_room()]
-        depth, _ = render_boxes(boxes, camera)
-        cv2.imwrite(str(root / "depth" / f"{name}.png"), np.round(depth * 1000).astype(np.uint16))
-    write_cameras(root, {name: camera for name in names})
-    (root / "splits.json").write_text(json.dumps({"train": names[:3], "val": names[3:]}))
+    write_room_dataset(root, Camera.preset("nyu").scaled(0.25))
     return root
 
 
@@ -126,32 +111,16 @@ def test_torchrun_two_processes_train_one_sampler(tmp_path, sampler_dataset):
 def finetune_setup(tmp_path_factory):
     """As tests/test_finetune.py's rgbd_dataset and weights: simple_room with depth and a shaded RGB image
     from 4 shifted 160x120 cameras (3 train, 1 val), a tiny sampler and a tiny depth net."""
-    import cv2
 
     from cuboidcli.camera import Camera
-    from cuboidcli.cuboid import Cuboid
     from cuboidcli.depth.net import DepthNet, DepthNetConfig
     from cuboidcli.depth.net import checkpoint_dict as depth_checkpoint
-    from cuboidcli.io.dataset import write_cameras
     from cuboidcli.learn.sampler_net import SamplerNet, SamplerNetConfig
     from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
-    from cuboidcli.synth.render import render_boxes
 
     camera = Camera.preset("nyu").scaled(0.25)
     root = tmp_path_factory.mktemp("ddp_finetune")
-    data = root / "data"
-    (data / "depth").mkdir(parents=True)
-    (data / "rgb").mkdir()
-    names = [f"{i:06d}" for i in range(4)]
-    for i, name in enumerate(names):
-        shift = np.array([0.1 * i - 0.15, 0.0, 0.05 * i])
-        boxes = [Cuboid(c.center + shift, c.half_size, c.rotation) for c in simple_room()]
-        depth, _ = render_boxes(boxes, camera)
-        cv2.imwrite(str(data / "depth" / f"{name}.png"), np.round(depth * 1000).astype(np.uint16))
-        shade = np.clip(255 - depth * 40, 0, 255).astype(np.uint8)
-        cv2.imwrite(str(data / "rgb" / f"{name}.png"), np.stack([shade, shade // 2, 255 - shade], -1))
-    write_cameras(data, {name: camera for name in names})
-    (data / "splits.json").write_text(json.dumps({"train": names[:3], "val": names[3:]}))
+    write_room_dataset(root / "data", camera, rgb=True)
     torch.manual_seed(0)
     sampler = SamplerNet(SamplerNetConfig(width=16, blocks=1, upsample=2, prior="unexplained"))
     depth_net = DepthNet(

@@ -1,7 +1,6 @@
 """End-to-end fine-tuning (cuboidcli.learn.finetune): gradients reach every network, runs write usable
 weights, resume continues, bad settings are refused. Tiny networks on a 4-frame RGB-D dataset."""
 
-import json
 
 import numpy as np
 import pytest
@@ -27,7 +26,7 @@ from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig
 from cuboidcli.learn.solver_net import checkpoint_dict as solver_checkpoint
 from cuboidcli.solvers.implicit import polished
 from cuboidcli.solvers.numerical import NumericalSolver
-from tests.conftest import simple_room
+from tests.conftest import write_room_dataset
 
 CAMERA = Camera.preset("nyu").scaled(0.25)  # 160x120
 
@@ -35,25 +34,8 @@ CAMERA = Camera.preset("nyu").scaled(0.25)  # 160x120
 @pytest.fixture(scope="module")
 def rgbd_dataset(tmp_path_factory):
     """Four frames of simple_room (3 train, 1 val) with depth and a shaded RGB image."""
-    import cv2
-
-    from cuboidcli.cuboid import Cuboid
-    from cuboidcli.io.dataset import write_cameras
-    from cuboidcli.synth.render import render_boxes
-
     root = tmp_path_factory.mktemp("finetune_data")
-    (root / "depth").mkdir()
-    (root / "rgb").mkdir()
-    names = [f"{i:06d}" for i in range(4)]
-    for i, name in enumerate(names):
-        shift = np.array([0.1 * i - 0.15, 0.0, 0.05 * i])
-        boxes = [Cuboid(c.center + shift, c.half_size, c.rotation) for c in simple_room()]
-        depth, _ = render_boxes(boxes, CAMERA)
-        cv2.imwrite(str(root / "depth" / f"{name}.png"), np.round(depth * 1000).astype(np.uint16))
-        shade = np.clip(255 - depth * 40, 0, 255).astype(np.uint8)
-        cv2.imwrite(str(root / "rgb" / f"{name}.png"), np.stack([shade, shade // 2, 255 - shade], -1))
-    write_cameras(root, {name: CAMERA for name in names})
-    (root / "splits.json").write_text(json.dumps({"train": names[:3], "val": names[3:]}))
+    write_room_dataset(root, CAMERA, rgb=True)
     return root
 
 

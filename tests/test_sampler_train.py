@@ -32,7 +32,7 @@ from cuboidcli.learn.sampler_net import (
 )
 from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler, train_scene
 from cuboidcli.solvers.numerical import NumericalSolver
-from tests.conftest import simple_room
+from tests.conftest import simple_room, write_room_dataset
 
 TINY = SamplerNetConfig(width=16, blocks=1, upsample=2)
 #: Only the policy-gradient term: every regulariser off.
@@ -198,22 +198,8 @@ def test_a_few_steps_raise_the_expected_inlier_count(prep):
 @pytest.fixture(scope="module")
 def tiny_dataset(tmp_path_factory, camera):
     """Four frames of simple_room seen from slightly shifted cameras: 3 train, 1 val."""
-    import cv2
-
-    from cuboidcli.cuboid import Cuboid
-    from cuboidcli.io.dataset import write_cameras
-    from cuboidcli.synth.render import render_boxes
-
     root = tmp_path_factory.mktemp("sampler_data")
-    (root / "depth").mkdir()
-    names = [f"{i:06d}" for i in range(4)]
-    for i, name in enumerate(names):
-        shift = np.array([0.1 * i - 0.15, 0.0, 0.05 * i])
-        boxes = [Cuboid(c.center + shift, c.half_size, c.rotation) for c in simple_room()]
-        depth, _ = render_boxes(boxes, camera)
-        cv2.imwrite(str(root / "depth" / f"{name}.png"), np.round(depth * 1000).astype(np.uint16))
-    write_cameras(root, {name: camera for name in names})
-    (root / "splits.json").write_text(json.dumps({"train": names[:3], "val": names[3:]}))
+    write_room_dataset(root, camera)
     return root
 
 
