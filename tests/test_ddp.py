@@ -184,3 +184,21 @@ def test_torchrun_two_processes_finetune(tmp_path, finetune_setup):
     # Every rank's draw generator is in the checkpoint, and the ranks drew differently.
     assert len(last["draw_rngs"]) == 2 and not torch.equal(last["draw_rngs"][0], last["draw_rngs"][1])
     assert torch.equal(last["draw_rng"], last["draw_rngs"][0])
+
+
+@pytest.mark.parametrize("world", ["1", "2"])
+def test_entry_point_exit_status_and_output_under_a_launcher(tmp_path, world):
+    """Under torchrun (WORLD_SIZE > 1) the entry point leaves with os._exit: the status and everything
+    printed must still come out, for success, usage errors and command errors alike."""
+    env = {**os.environ, "WORLD_SIZE": world}
+
+    def cli(*args: str) -> subprocess.CompletedProcess:
+        cmd = [sys.executable, "-m", "cuboidcli.cli.main", *args]
+        return subprocess.run(cmd, capture_output=True, text=True, env=env, cwd=tmp_path)
+
+    ok = cli("--version")
+    assert ok.returncode == 0 and ok.stdout.startswith("cuboids ")
+    usage = cli("no-such-command")
+    assert usage.returncode == 2 and "No such command" in usage.stderr
+    failed = cli("fit", str(tmp_path / "missing.png"))
+    assert failed.returncode == 2 and "image file not found" in failed.stderr

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import os
+import sys
+
 import typer
 
 from cuboidcli import __version__
@@ -47,5 +50,40 @@ from cuboidcli.cli import train as _train  # noqa: E402
 
 _train.register(app)
 
+
+def _exit_status(code: object) -> int:
+    """The process exit status ``sys.exit(code)`` would give (printing a message code as it would)."""
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code
+    print(code, file=sys.stderr)
+    return 1
+
+
+def run() -> None:
+    """Console entry point: the Typer app, plus a hard exit for processes started by ``torchrun``.
+
+    A multi-process run has finished its work, written its files and torn its process group down by the
+    time the command returns (the trainers end with a barrier). What is left is the interpreter's own
+    shutdown, and there native thread pools of the libraries loaded (gloo's, the two OpenMP runtimes of
+    torch and numba) can abort the process ("terminate called without an active exception"), which makes
+    torchrun report a finished run as failed. Such a process therefore leaves with ``os._exit`` once its
+    output is flushed. A single process exits normally.
+    """
+    try:
+        app()
+        code: object = 0
+    except SystemExit as exc:
+        code = exc.code
+    # WORLD_SIZE as torchrun sets it (as distributed.launched_world_size, without importing torch).
+    if int(os.environ.get("WORLD_SIZE", "1")) <= 1:
+        sys.exit(code)
+    status = _exit_status(code)
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)
+
+
 if __name__ == "__main__":
-    app()
+    run()
