@@ -89,6 +89,14 @@ def _normalised_nchw(rgb: np.ndarray, mean, std) -> np.ndarray:
     return np.ascontiguousarray(x.transpose(2, 0, 1)[None])
 
 
+def focal_factor(config, camera: Camera) -> float:
+    """f / f_canonical for a depth net of ``config`` (a DepthNetConfig) seeing ``camera``'s image resized to
+    its input size: the factor that turns its canonical-camera prediction into this camera's metric depth."""
+    fx = camera.fx * config.input_width / camera.width
+    fy = camera.fy * config.input_height / camera.height
+    return math.sqrt(fx * fy) / config.canonical_focal_px
+
+
 class BuiltinDepthEstimator:
     """The built-in network: metric depth for any camera.
 
@@ -119,10 +127,7 @@ class BuiltinDepthEstimator:
 
     def focal_factor(self, camera: Camera) -> float:
         """f / f_canonical of the camera after resizing to the net's input size."""
-        cfg = self.net.config
-        fx = camera.fx * cfg.input_width / camera.width
-        fy = camera.fy * cfg.input_height / camera.height
-        return math.sqrt(fx * fy) / cfg.canonical_focal_px
+        return focal_factor(self.net.config, camera)
 
     def predict_native(self, rgb: np.ndarray, camera: Camera) -> np.ndarray:
         """Metric depth at the net's input resolution, float32 (input_height, input_width)."""

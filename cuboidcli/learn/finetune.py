@@ -226,10 +226,10 @@ def predicted_grid(depth_net, scene: Scene) -> Tensor:
     As :class:`~cuboidcli.depth.estimator.BuiltinDepthEstimator`: predict at the net's input size, scale by
     f / f_canonical, resize to the image (bilinear) and take every grid_step-th pixel.
     """
-    from cuboidcli.depth.estimator import BuiltinDepthEstimator
+    from cuboidcli.depth.estimator import focal_factor
 
     cam = scene.camera
-    factor = BuiltinDepthEstimator(net=depth_net, device=scene.rgb.device).focal_factor(cam)
+    factor = focal_factor(depth_net.config, cam)
     depth_net.eval()  # batch-norm statistics stay frozen: fine-tuning sees one image at a time
     pred = depth_net(depth_net.normalise(scene.rgb)) * factor  # (1, 1, h, w)
     if pred.shape[-2:] != (cam.height, cam.width):
