@@ -11,6 +11,7 @@ configuration; a bundle that is not there falls back to the top-level ``models/`
 from __future__ import annotations
 
 import os
+from functools import lru_cache
 from pathlib import Path
 
 #: The shipped weights (a source checkout or an editable install); ``$CUBOIDS_MODELS`` overrides it.
@@ -45,7 +46,17 @@ _KIND_KEYS = {"sampler": "maps", "solver": "heads", "depth": "channels"}
 
 
 def checkpoint_kind(path: str | os.PathLike) -> str | None:
-    """"sampler", "solver" or "depth" for a weights file of ours (by its config keys), else None."""
+    """ "sampler", "solver" or "depth" for a weights file of ours (by its config keys), else None.
+
+    Remembered per file version (path, size, modification time): fit and evaluate ask once per network
+    kind for the same ``--weights`` file, which is then read only once here.
+    """
+    st = Path(path).stat()
+    return _checkpoint_kind(str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+
+
+@lru_cache(maxsize=32)
+def _checkpoint_kind(path: str, size: int, mtime_ns: int) -> str | None:
     import torch
 
     try:

@@ -1,0 +1,54 @@
+"""Which shipped weights a configuration picks, and where a ``--weights`` file goes."""
+
+from __future__ import annotations
+
+import pytest
+import torch
+
+from cuboidcli import bundles
+from cuboidcli.bundles import MODELS_DIR, checkpoint_kind, default_weights_dir, weights_for
+
+
+@pytest.mark.parametrize(
+    ("name", "kind"),
+    [("sampler_v2.pt", "sampler"), ("solver_v2.pt", "solver"), ("depth_v1.pt", "depth")],
+)
+def test_shipped_files_are_recognised(name, kind):
+    assert checkpoint_kind(MODELS_DIR / name) == kind
+
+
+def test_foreign_files_are_not_ours(tmp_path):
+    text = tmp_path / "notes.pt"
+    text.write_text("not a checkpoint")
+    plain = tmp_path / "plain.pt"
+    torch.save({"weights": torch.zeros(3)}, plain)
+    assert checkpoint_kind(text) is None and checkpoint_kind(plain) is None
+    # Unknown files go to every network (which then says what is wrong with them).
+    assert weights_for("sampler", text) == text and weights_for("solver", plain) == plain
+
+
+def test_a_weights_file_goes_only_to_its_network(tmp_path):
+    solver = MODELS_DIR / "solver_v2.pt"
+    assert weights_for("solver", solver) == solver
+    assert weights_for("sampler", solver) is None  # the learned sampler keeps its shipped weights
+    assert weights_for("sampler", tmp_path) == tmp_path  # a folder: each part picks its own file
+    assert weights_for("depth", None) is None
+
+
+def test_kind_is_read_once_per_file_version(tmp_path, monkeypatch):
+    path = tmp_path / "w.pt"
+    torch.save({"config": {"heads": 2}, "state_dict": {}}, path)
+    loads = []
+    real_load = torch.load
+    monkeypatch.setattr(torch, "load", lambda *a, **k: loads.append(a[0]) or real_load(*a, **k))
+    bundles._checkpoint_kind.cache_clear()
+    assert [checkpoint_kind(path) for _ in range(3)] == ["solver"] * 3
+    assert len(loads) == 1
+    torch.save({"config": {"maps": 4}, "state_dict": {}}, path)  # rewritten: read again
+    assert checkpoint_kind(path) == "sampler" and len(loads) == 2
+
+
+def test_default_bundles():
+    assert default_weights_dir("numerical") is None  # top-level models/
+    assert default_weights_dir("neural") == MODELS_DIR / "neural"
+    assert default_weights_dir("numerical", rgb=True, builtin_depth=False) is None
