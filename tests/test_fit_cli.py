@@ -179,6 +179,11 @@ def test_rgb_only_uses_the_depth_estimator(tmp_path):
     d = json.loads(out.read_text())
     assert d["input"]["depth"] is None and "built-in network" in d["input"]["depth_source"]
     assert len(d["cuboids"]) == 1
+    # The estimation is a stage of the frame's fitting time, listed first and counted in the total.
+    t = d["timing_s"]
+    assert next(iter(t)) == "depth" and t["depth"] > 0
+    stages = sum(v for k, v in t.items() if k not in ("total", "assign"))
+    assert t["total"] >= stages - 1e-5 and t["total"] >= t["depth"] + t["solve"] + t["score"] - 1e-5
     r = run("fit", img, "--depth-model", tmp_path / "missing.pt", "-o", out)
     assert r.exit_code == 2 and "not found" in r.output
 

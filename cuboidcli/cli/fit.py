@@ -60,6 +60,8 @@ class FitJob:
             sampler=self.sampler,
             progress=progress,
         )
+        if frame.depth_seconds is not None:
+            info.add_depth_time(frame.depth_seconds)
         extra = {"weights": _str_or_none(self.weights), "onnx": _str_or_none(self.onnx)}
         res = make_result(
             frame.camera, cuboids, info, self.config, frame.meta, self.solver.name, self.sampler.name, extra
@@ -273,7 +275,8 @@ def fit(
         t = info.timing_s
         out.print(
             f"fitted {len(res.cuboids)} cuboids to {info.n_points} points in {t['total']:.2f} s "
-            f"(solve {t['solve']:.2f} s, score {t['score']:.2f} s; stop: {info.stop_reason})"
+            f"({'depth {:.2f} s, '.format(t['depth']) if 'depth' in t else ''}"
+            f"solve {t['solve']:.2f} s, score {t['score']:.2f} s; stop: {info.stop_reason})"
         )
         for p in written:
             out.print(f"wrote {p}")

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 import math
 import os
+import time
 from pathlib import Path
 from typing import Protocol
 
@@ -348,14 +349,19 @@ def depth_for_fit(
     shift: float | None = None,
     partial_depth: np.ndarray | None = None,
     device: str | torch.device = "cpu",
+    timing: dict | None = None,
 ) -> tuple[np.ndarray, str]:
     """Depth for ``fit_depth`` from an RGB image: ``(depth_m float32 (H, W), one-line description)``.
 
     rgb: (H, W, 3) uint8 RGB; camera: its intrinsics. ``model`` etc. as :func:`make_depth_estimator`;
-    ``partial_depth`` (H, W) metres, 0 = unknown, aligns a relative model's output.
+    ``partial_depth`` (H, W) metres, 0 = unknown, aligns a relative model's output. ``timing``: a dict
+    that receives ``"depth"``, the seconds of the estimation itself (building the estimator excluded).
     """
     estimator = make_depth_estimator(model, kind, scale, shift, partial_depth, device)
+    t0 = time.perf_counter()
     depth = estimator.predict(rgb, camera)
+    if timing is not None:
+        timing["depth"] = time.perf_counter() - t0
     if not (depth > 0).any():
         raise ValueError(f"{estimator.describe()}: the estimated depth has no positive values")
     return depth, estimator.describe()

@@ -215,8 +215,7 @@ def _fit_and_save(
     except (ValueError, FileNotFoundError, ImportError) as e:  # bad settings, weights or input: one line
         raise InputError(f"frame {frame.name}: {e}") from e
     if depth_s is not None:
-        info.timing_s = {"depth": round(depth_s, 6), **info.timing_s}
-        info.timing_s["total"] = round(info.timing_s["total"] + depth_s, 6)
+        info.add_depth_time(depth_s)
     if save_fits_dir is not None:
         result = make_result(
             frame.camera,

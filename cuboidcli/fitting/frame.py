@@ -23,6 +23,8 @@ class FrameInput:
     depth_scale: float
     notes: list[str]
     meta: dict
+    depth_seconds: float | None = None
+    """Seconds the depth estimation from RGB took (None: the depth was given)."""
 
 
 def resolve_depth_scale(depth_scale: float | None, intr: Intrinsics, preset: str | None) -> float:
@@ -78,10 +80,11 @@ def load_frame(
     scale = resolve_depth_scale(depth_scale, intr, preset)
     rgb = read_rgb(image_path) if image_path is not None else None
     source = None
+    timing: dict = {}
     if depth_path is not None:
         depth = read_depth(depth_path, scale)
     else:
-        depth, source = _estimate_depth(rgb, intr, scale, depth_model or DepthModelOptions())
+        depth, source = _estimate_depth(rgb, intr, scale, depth_model or DepthModelOptions(), timing)
     notes += check_inputs(depth, intr, None if rgb is None else rgb.shape)
     h, w = depth.shape
     camera = intr.camera(w, h)
@@ -95,17 +98,27 @@ def load_frame(
         "valid_fraction": round(float(valid_depth(depth).mean()), 6),
         "intrinsics_source": intr.source,
     }
-    return FrameInput(depth, camera, rgb, scale, notes, meta)
+    return FrameInput(depth, camera, rgb, scale, notes, meta, timing.get("depth"))
 
 
-def _estimate_depth(rgb: np.ndarray, intr: Intrinsics, depth_scale: float, opts: DepthModelOptions):
+def _estimate_depth(
+    rgb: np.ndarray, intr: Intrinsics, depth_scale: float, opts: DepthModelOptions, timing: dict
+):
     from cuboidcli.depth import depth_for_fit
 
     h, w = rgb.shape[:2]
     partial = read_depth(opts.partial_depth, depth_scale) if opts.partial_depth else None
     try:
         return depth_for_fit(
-            rgb, intr.camera(w, h), opts.model, opts.kind, opts.scale, opts.shift, partial, opts.device
+            rgb,
+            intr.camera(w, h),
+            opts.model,
+            opts.kind,
+            opts.scale,
+            opts.shift,
+            partial,
+            opts.device,
+            timing=timing,
         )
     except (ValueError, FileNotFoundError) as e:
         raise InputError(str(e)) from e

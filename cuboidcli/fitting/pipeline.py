@@ -54,6 +54,12 @@ class FitInfo:
     state: np.ndarray | None = None
     """(N,) f_OAI of the final set at the valid fitting points."""
 
+    def add_depth_time(self, seconds: float) -> None:
+        """Count a depth estimation from RGB as part of the frame's fitting time: stage "depth" (first) and
+        in "total" (the network is part of the pipeline; loading it is start-up and is not counted)."""
+        self.timing_s = {"depth": round(seconds, 6), **self.timing_s}
+        self.timing_s["total"] = round(self.timing_s.get("total", 0.0) + seconds, 6)
+
 
 @dataclass
 class PreparedPoints:
