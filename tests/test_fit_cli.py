@@ -188,6 +188,71 @@ def test_rgb_only_uses_the_depth_estimator(tmp_path):
     assert r.exit_code == 2 and "not found" in r.output
 
 
+def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch):
+    """IMAGE may be a folder: every colour image is fitted from estimated depth, depth PNGs next to the photos
+    are left out with one note, per-frame intrinsics are found by the frame name without "_rgb", and the
+    depth network is loaded once for the whole folder."""
+    import json as jsonlib
+
+    import torch
+
+    from cuboidcli.depth import estimator as estimator_mod
+    from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict
+    from cuboidcli.fitting import frame as frame_mod
+
+    torch.manual_seed(0)
+    weights = tmp_path / "depth.pt"
+    torch.save(checkpoint_dict(DepthNet(DepthNetConfig(channels=(4, 8, 8, 8, 8)))), weights)
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    cams = {}
+    for name in ("a", "b"):
+        cv2.imwrite(str(folder / f"{name}_rgb.jpg"), rng.uniform(0, 255, (120, 160, 3)).astype(np.uint8))
+        cv2.imwrite(str(folder / f"{name}_depth.png"), np.full((120, 160), 2000, np.uint16))
+        cams[name] = {"fx": 130.0, "fy": 130.0, "cx": 80.0, "cy": 60.0}
+    (folder / "cameras.json").write_text(jsonlib.dumps(cams))
+    loads = []
+    real = estimator_mod.BuiltinDepthEstimator.__init__
+    monkeypatch.setattr(
+        estimator_mod.BuiltinDepthEstimator,
+        "__init__",
+        lambda self, *a, **k: loads.append(1) or real(self, *a, **k),
+    )
+    frame_mod._estimator.cache_clear()
+    out = tmp_path / "out"
+    args = (
+        "--depth-model",
+        weights,
+        "-o",
+        out,
+        "--hypotheses",
+        "64",
+        "--theta",
+        "-1e9",
+        "--max-cuboids",
+        "1",
+    )
+    r = run("fit", folder, *args)
+    assert r.exit_code == 0, r.output
+    assert "left out 2 files" in r.output and r.output.count("depth estimated from RGB") == 1
+    assert sorted(p.name for p in out.iterdir()) == ["a_rgb_cuboids.json", "b_rgb_cuboids.json"]
+    for name in ("a", "b"):
+        d = jsonlib.loads((out / f"{name}_rgb_cuboids.json").read_text())
+        assert d["input"]["depth"] is None and d["timing_s"]["depth"] > 0 and len(d["cuboids"]) == 1
+        assert d["camera"]["fx"] == 130.0
+    assert len(loads) == 1
+    # A folder of images with --depth, or with one partial depth map, is refused in one line.
+    r = run("fit", folder, "--depth", folder / "a_depth.png")
+    assert r.exit_code == 2 and "IMAGE is a folder" in r.output
+    r = run("fit", folder, "--partial-depth", folder / "a_depth.png")
+    assert r.exit_code == 2 and "--partial-depth belongs to one image" in r.output
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    r = run("fit", empty)
+    assert r.exit_code == 2 and "no colour images" in r.output
+
+
 def test_demo_writes_every_output(tmp_path):
     r = run("demo", "-o", tmp_path / "demo")
     assert r.exit_code == 0, r.output

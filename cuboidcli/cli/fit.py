@@ -20,6 +20,7 @@ from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
 
 SAMPLE_DIR = Path(__file__).resolve().parents[1] / "data" / "sample"
 DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 
 
 @dataclass
@@ -39,6 +40,8 @@ class FitJob:
     overlay: bool = False
     with_points: bool = False
     depth_model: object = None
+    quiet_source: bool = False
+    """Do not repeat the "depth estimated from RGB" note (every frame of a folder after the first)."""
 
     def run(self, depth: Path | None, image: Path | None, progress=None):
         """Fit one frame; returns (FitResult, FrameInput, FitInfo)."""
@@ -50,7 +53,7 @@ class FitJob:
         )
         for note in frame.notes:
             console.print(f"[yellow]warning:[/] {note}", highlight=False)
-        if frame.meta["depth"] is None:
+        if frame.meta["depth"] is None and not self.quiet_source:
             console.print(f"[cyan]note:[/] {frame.meta['depth_source']}", highlight=False)
         cuboids, info = fit_depth(
             frame.depth_m,
@@ -140,7 +143,11 @@ def cuboid_table(result) -> Table:
 
 
 def fit(
-    image: Path = typer.Argument(None, help="RGB image (optional with --depth; used for overlays)."),
+    image: Path = typer.Argument(
+        None,
+        help="RGB image (optional with --depth; used for overlays); without --depth an image or a folder of "
+        "images, whose depth comes from a monocular network.",
+    ),
     depth: Path = typer.Option(
         None,
         "--depth",
@@ -212,6 +219,11 @@ def fit(
         fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
     if image is not None and not image.exists():
         fail(f"image file not found: {image}")
+    if image is not None and image.is_dir():
+        if depth is not None:
+            fail("IMAGE is a folder: give it without --depth (depth from the images) or use --depth FOLDER")
+        if partial_depth is not None:
+            fail("--partial-depth belongs to one image; it cannot align every image of a folder")
     with user_errors():
         from cuboidcli.bundles import default_weights_dir
         from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
@@ -251,6 +263,9 @@ def fit(
                 None if partial_depth is None else str(partial_depth),
                 config.device,
             )
+            if image.is_dir():
+                _fit_folder(job, image, output, quiet, rgb=True)
+                return
         elif depth.is_dir():
             _fit_folder(job, depth, output, quiet)
             return
@@ -282,15 +297,29 @@ def fit(
             out.print(f"wrote {p}")
 
 
-def _fit_folder(job: FitJob, folder: Path, output: Path | None, quiet: bool) -> None:
+def _fit_folder(job: FitJob, folder: Path, output: Path | None, quiet: bool, rgb: bool = False) -> None:
+    """Fit every depth map (``rgb``: every colour image, depth estimated) of a folder, one JSON each."""
     from cuboidcli.io.depth import InputError
 
-    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in DEPTH_SUFFIXES and p.is_file())
+    suffixes = IMAGE_SUFFIXES if rgb else DEPTH_SUFFIXES
+    files = sorted(p for p in folder.iterdir() if p.suffix.lower() in suffixes and p.is_file())
+    if rgb:
+        # A folder of frames often holds the depth maps next to the photos (NYU, TUM): 16-bit or grey
+        # images are not photos; they are left out with one line instead of one error each.
+        photos = [f for f in files if _is_colour_image(f)]
+        if len(photos) < len(files) and not quiet:
+            console.print(
+                f"[cyan]note:[/] left out {len(files) - len(photos)} files that are not colour images "
+                "(depth maps?)",
+                highlight=False,
+            )
+        files = photos
     if not files:
-        fail(f"no depth maps (*.png, *.npy, *.npz, *.exr) in {folder}")
+        kind = "colour images (*.png, *.jpg, ...)" if rgb else "depth maps (*.png, *.npy, *.npz, *.exr)"
+        fail(f"no {kind} in {folder}")
     out_dir = output or Path(f"{folder.name}_cuboids")
     if out_dir.suffix == ".json":
-        fail("-o must be a folder when --depth is a folder")
+        fail(f"-o must be a folder when {'IMAGE' if rgb else '--depth'} is a folder")
     if job.intrinsics is None and (folder / "cameras.json").is_file():
         job.intrinsics = str(folder / "cameras.json")
     failures = 0
@@ -303,9 +332,10 @@ def _fit_folder(job: FitJob, folder: Path, output: Path | None, quiet: bool) -> 
         disable=quiet,
     ) as prog:
         task = prog.add_task("fitting", total=len(files))
-        for f in files:
+        for i, f in enumerate(files):
             try:
-                res, frame, info = job.run(f, None)
+                job.quiet_source = i > 0
+                res, frame, info = job.run(None, f) if rgb else job.run(f, None)
                 job.write(res, frame, out_dir / f"{f.stem}_cuboids.json")
                 desc = f"{f.name}: {len(res.cuboids)} cuboids, {info.timing_s['total']:.2f} s"
             except InputError as e:
@@ -317,6 +347,14 @@ def _fit_folder(job: FitJob, folder: Path, output: Path | None, quiet: bool) -> 
         out.print(f"wrote {len(files) - failures} results to {out_dir}/")
     if failures:
         raise typer.Exit(1)
+
+
+def _is_colour_image(path: Path) -> bool:
+    """Whether ``path`` is a colour image (3 or 4 channels); a one-channel PNG is taken for a depth map."""
+    import cv2
+
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    return img is not None and img.ndim == 3 and img.shape[2] in (3, 4)
 
 
 def demo(

@@ -1,7 +1,8 @@
 """Depth from RGB (issue 7): depth estimators f_v behind one interface, the built-in network, its training.
 
 Public entry points: :func:`depth_for_fit` (what ``cuboids fit image.png`` without ``--depth`` calls),
-:func:`make_depth_estimator`, :class:`BuiltinDepthEstimator`, :class:`OnnxDepthEstimator`.
+:func:`estimate_depth` (the same with an estimator built once), :func:`make_depth_estimator`,
+:class:`BuiltinDepthEstimator`, :class:`OnnxDepthEstimator`.
 """
 
 from cuboidcli.depth.estimator import (
@@ -9,6 +10,7 @@ from cuboidcli.depth.estimator import (
     DepthEstimator,
     OnnxDepthEstimator,
     depth_for_fit,
+    estimate_depth,
     make_depth_estimator,
 )
 
@@ -17,5 +19,6 @@ __all__ = [
     "DepthEstimator",
     "OnnxDepthEstimator",
     "depth_for_fit",
+    "estimate_depth",
     "make_depth_estimator",
 ]

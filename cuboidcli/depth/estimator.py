@@ -358,6 +358,13 @@ def depth_for_fit(
     that receives ``"depth"``, the seconds of the estimation itself (building the estimator excluded).
     """
     estimator = make_depth_estimator(model, kind, scale, shift, partial_depth, device)
+    return estimate_depth(estimator, rgb, camera, timing)
+
+
+def estimate_depth(
+    estimator: DepthEstimator, rgb: np.ndarray, camera: Camera, timing: dict | None = None
+) -> tuple[np.ndarray, str]:
+    """As :func:`depth_for_fit` with an estimator built once (a folder of images reuses it)."""
     t0 = time.perf_counter()
     depth = estimator.predict(rgb, camera)
     if timing is not None:

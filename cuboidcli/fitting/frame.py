@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -104,24 +105,24 @@ def load_frame(
 def _estimate_depth(
     rgb: np.ndarray, intr: Intrinsics, depth_scale: float, opts: DepthModelOptions, timing: dict
 ):
-    from cuboidcli.depth import depth_for_fit
+    from cuboidcli.depth import estimate_depth
 
     h, w = rgb.shape[:2]
-    partial = read_depth(opts.partial_depth, depth_scale) if opts.partial_depth else None
     try:
-        return depth_for_fit(
-            rgb,
-            intr.camera(w, h),
-            opts.model,
-            opts.kind,
-            opts.scale,
-            opts.shift,
-            partial,
-            opts.device,
-            timing=timing,
-        )
+        estimator = _estimator(opts, depth_scale)
+        return estimate_depth(estimator, rgb, intr.camera(w, h), timing)
     except (ValueError, FileNotFoundError) as e:
         raise InputError(str(e)) from e
+
+
+@lru_cache(maxsize=4)
+def _estimator(opts: DepthModelOptions, depth_scale: float):
+    """The depth estimator for these options, built once per process: a folder of images (or a long-lived
+    caller) loads the network, or a user's ONNX session, once; loading is start-up, not fitting time."""
+    from cuboidcli.depth import make_depth_estimator
+
+    partial = read_depth(opts.partial_depth, depth_scale) if opts.partial_depth else None
+    return make_depth_estimator(opts.model, opts.kind, opts.scale, opts.shift, partial, opts.device)
 
 
 def make_result(

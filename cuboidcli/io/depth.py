@@ -171,7 +171,7 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
         if isinstance(d, dict) and "fx" not in d:
             entries = {k: v for k, v in d.items() if isinstance(v, dict) and "fx" in v}
             if frame is not None:
-                for tag in ("_depth_filled", "_depth_raw", "_depth"):
+                for tag in ("_depth_filled", "_depth_raw", "_depth", "_rgb", "_color", "_colour", "_image"):
                     if frame not in entries and frame.endswith(tag):
                         frame = frame[: -len(tag)]
             if frame is not None and frame in entries:
