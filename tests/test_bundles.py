@@ -11,7 +11,12 @@ from cuboidcli.bundles import MODELS_DIR, checkpoint_kind, default_weights_dir, 
 
 @pytest.mark.parametrize(
     ("name", "kind"),
-    [("sampler_v2.pt", "sampler"), ("solver_v2.pt", "solver"), ("depth_v1.pt", "depth")],
+    [
+        ("sampler_v2.pt", "sampler"),
+        ("solver_v2.pt", "solver"),
+        ("depth_v1.pt", "depth"),
+        ("depth_v3.pt", "depth"),
+    ],
 )
 def test_shipped_files_are_recognised(name, kind):
     assert checkpoint_kind(MODELS_DIR / name) == kind
@@ -52,3 +57,4 @@ def test_default_bundles():
     assert default_weights_dir("numerical") is None  # top-level models/
     assert default_weights_dir("neural") == MODELS_DIR / "neural"
     assert default_weights_dir("numerical", rgb=True, builtin_depth=False) is None
+    assert bundles.default_depth_weights() == MODELS_DIR / "depth_v3.pt"

@@ -194,7 +194,7 @@ def fit(
         None,
         "--depth-model",
         help="Without --depth: a user's monocular depth "
-        "model (.onnx) or a built-in checkpoint (.pt) [default: models/depth_v1.pt].",
+        "model (.onnx) or a built-in checkpoint (.pt) [default: models/depth_v3.pt].",
     ),
     depth_model_kind: str = typer.Option(
         "metric", "--depth-model-kind", help="metric | relative | relative-inverse (ONNX models)."

@@ -6,7 +6,7 @@ metres, float32 ``(H, W)`` at the image's full resolution; 0 marks pixels withou
 fitting pipeline subsamples this map to its fitting grid (every 8th pixel) itself.
 
 - :class:`BuiltinDepthEstimator`: the project's own network (:mod:`cuboidcli.depth.net`), weights in
-  ``models/depth_v1.pt``.
+  ``models/depth_v3.pt``.
 - :class:`OnnxDepthEstimator`: a user's monocular network exported to ONNX. Expected tensors:
 
   * input: one tensor ``(1, 3, h, w)`` float32, RGB order, ``(rgb / 255 - mean) / std`` per channel
@@ -36,8 +36,8 @@ from cuboidcli.camera import Camera
 from cuboidcli.depth.net import IMAGENET_MEAN, IMAGENET_STD, DepthNet, net_from_checkpoint
 
 #: Versioned default weights, relative to the repository root.
-DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "depth_v1.pt"
-"""The pre-trained network; the default is the fine-tuned one when shipped (:mod:`cuboidcli.bundles`)."""
+DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "depth_v3.pt"
+"""The default network (:func:`cuboidcli.bundles.default_depth_weights`)."""
 
 KINDS = ("metric", "relative", "relative-inverse")
 
@@ -53,7 +53,7 @@ class DepthEstimator(Protocol):
 
 
 def default_weights_path() -> Path:
-    """The shipped weights (``models/depth_v1.pt``, see :func:`cuboidcli.bundles.default_depth_weights`),
+    """The shipped weights (``models/depth_v3.pt``, see :func:`cuboidcli.bundles.default_depth_weights`),
     or ``$CUBOIDS_DEPTH_WEIGHTS`` if set."""
     from cuboidcli.bundles import default_depth_weights
 
@@ -324,7 +324,7 @@ def make_depth_estimator(
     ref_depth: np.ndarray | None = None,
     device: str | torch.device = "cpu",
 ) -> DepthEstimator:
-    """The estimator for a ``--depth-model`` option: None = the built-in network (models/depth_v1.pt), a
+    """The estimator for a ``--depth-model`` option: None = the built-in network (models/depth_v3.pt), a
     ``.pt`` checkpoint of the built-in network, or an ``.onnx`` model with its ``kind`` and alignment."""
     if model is None or Path(model).suffix.lower() == ".pt":
         if kind != "metric" or scale is not None or shift is not None or ref_depth is not None:

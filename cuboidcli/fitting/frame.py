@@ -46,7 +46,7 @@ class DepthModelOptions:
     """How to get depth from an RGB image when no depth map is given (issue 7's estimators)."""
 
     model: str | None = None
-    """None = the built-in network (models/depth_v1.pt); a .pt checkpoint or a user's .onnx model."""
+    """None = the built-in network (models/depth_v3.pt); a .pt checkpoint or a user's .onnx model."""
     kind: str = "metric"
     """metric | relative | relative-inverse (for ONNX models)."""
     scale: float | None = None
