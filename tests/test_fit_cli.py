@@ -219,7 +219,7 @@ def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch):
         "__init__",
         lambda self, *a, **k: loads.append(1) or real(self, *a, **k),
     )
-    frame_mod._estimator.cache_clear()
+    frame_mod.depth_estimator.cache_clear()
     out = tmp_path / "out"
     args = (
         "--depth-model",

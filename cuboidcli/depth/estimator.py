@@ -35,10 +35,6 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.depth.net import IMAGENET_MEAN, IMAGENET_STD, DepthNet, net_from_checkpoint
 
-#: Versioned default weights, relative to the repository root.
-DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "depth_v3.pt"
-"""The default network (:func:`cuboidcli.bundles.default_depth_weights`)."""
-
 KINDS = ("metric", "relative", "relative-inverse")
 
 

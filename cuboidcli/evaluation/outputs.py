@@ -29,14 +29,14 @@ def weights_hashes(config: FitConfig, weights: Path | None) -> dict[str, dict]:
 
     ``weights`` is what ``--weights`` gave (a folder or a file), None for the shipped defaults.
     """
+    from cuboidcli.bundles import weights_for
+
     files: dict[str, Path] = {}
     if config.solver == "neural":
-        from cuboidcli.bundles import weights_for
         from cuboidcli.solvers.neural import resolve_weights
 
         files["solver"] = resolve_weights(weights_for("solver", weights))
     if config.sampler == "learned":
-        from cuboidcli.bundles import weights_for
         from cuboidcli.learn.sampler_net import weights_path
 
         path = weights_path(weights_for("sampler", weights))

@@ -162,32 +162,23 @@ def _input_meta(frame: EvalFrame) -> dict:
     return meta
 
 
-_ESTIMATORS: dict = {}
-
-
 def _estimated_depth(frame: EvalFrame, depth_model: Path | None) -> tuple[np.ndarray, float]:
     """Depth from the frame's RGB image: (depth m (H, W), seconds the estimation took).
 
     The estimator is built once per process (loading it is start-up, not fitting time)."""
-    import time
-
-    from cuboidcli.depth.estimator import make_depth_estimator
+    from cuboidcli.depth import estimate_depth
+    from cuboidcli.fitting.frame import DepthModelOptions, depth_estimator
 
     rgb = frame.rgb() if hasattr(frame, "rgb") else None
     if rgb is None:
         raise InputError(f"frame {frame.name}: --rgb needs an RGB image, and this frame has none")
+    timing: dict = {}
     try:
-        key = None if depth_model is None else str(depth_model)
-        if key not in _ESTIMATORS:
-            _ESTIMATORS[key] = make_depth_estimator(depth_model)
-        estimator = _ESTIMATORS[key]
-        t0 = time.perf_counter()
-        depth = estimator.predict(rgb, frame.camera)
+        opts = DepthModelOptions(None if depth_model is None else str(depth_model))
+        depth, _ = estimate_depth(depth_estimator(opts), rgb, frame.camera, timing)
     except (ValueError, FileNotFoundError, ImportError) as e:
         raise InputError(f"frame {frame.name}: {e}") from e
-    if not (depth > 0).any():
-        raise InputError(f"frame {frame.name}: the estimated depth has no positive values")
-    return depth, time.perf_counter() - t0
+    return depth, timing["depth"]
 
 
 def _fit_and_save(

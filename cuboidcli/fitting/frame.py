@@ -109,16 +109,17 @@ def _estimate_depth(
 
     h, w = rgb.shape[:2]
     try:
-        estimator = _estimator(opts, depth_scale)
+        estimator = depth_estimator(opts, depth_scale)
         return estimate_depth(estimator, rgb, intr.camera(w, h), timing)
     except (ValueError, FileNotFoundError) as e:
         raise InputError(str(e)) from e
 
 
 @lru_cache(maxsize=4)
-def _estimator(opts: DepthModelOptions, depth_scale: float):
-    """The depth estimator for these options, built once per process: a folder of images (or a long-lived
-    caller) loads the network, or a user's ONNX session, once; loading is start-up, not fitting time."""
+def depth_estimator(opts: DepthModelOptions, depth_scale: float = 0.001):
+    """The depth estimator for these options, built once per process: a folder of images, or every frame of
+    an evaluation, loads the network (or a user's ONNX session) once; loading is start-up, not fitting time.
+    ``depth_scale``: metres per unit of ``opts.partial_depth`` when that is a PNG."""
     from cuboidcli.depth import make_depth_estimator
 
     partial = read_depth(opts.partial_depth, depth_scale) if opts.partial_depth else None
