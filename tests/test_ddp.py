@@ -24,16 +24,35 @@ TINY_RUN = ["--width", "16", "--layers", "1", "--heads", "2", "--ff", "32"]
 TINY_RUN += ["--iters", "6", "--batch", "8", "--val-every", "3", "--backend", "gloo"]
 
 
-def test_torchrun_two_processes_train_one_model(tmp_path):
-    out = tmp_path / "run"
+def torchrun(cwd, *args) -> subprocess.CompletedProcess:
+    """``cuboids ARGS`` in 2 CPU processes under torchrun, one thread each; the output if it fails."""
     # ``python -m torch.distributed.run`` is the torchrun console script, found without relying on PATH;
     # --standalone picks a free port, so parallel test runs do not collide.
     cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2"]
-    cmd += ["-m", "cuboidcli.cli.main", "train", "solver", *TINY_RUN, "--out", str(out)]
+    cmd += ["-m", "cuboidcli.cli.main", *map(str, args)]
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
     env.pop("CUBOIDS_DIST_BACKEND", None)
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env, cwd=cwd)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+    return proc
+
+
+def replica_hash(record: dict) -> str:
+    """The final-weights hash each rank logged in ``record``: two of them, bit-identical replicas."""
+    hashes = record["param_sha256"]
+    assert len(hashes) == 2 and hashes[0] == hashes[1]
+    return hashes[0]
+
+
+def assert_per_rank_draws(last: dict) -> None:
+    """Every rank's draw generator is in the checkpoint, and the ranks drew differently."""
+    assert len(last["draw_rngs"]) == 2 and not torch.equal(last["draw_rngs"][0], last["draw_rngs"][1])
+    assert torch.equal(last["draw_rng"], last["draw_rngs"][0])
+
+
+def test_torchrun_two_processes_train_one_model(tmp_path):
+    out = tmp_path / "run"
+    proc = torchrun(tmp_path, "train", "solver", *TINY_RUN, "--out", out)
 
     # One set of outputs, written by rank 0 alone: one line per event, one final message.
     names = sorted(p.name for p in out.iterdir())
@@ -48,10 +67,8 @@ def test_torchrun_two_processes_train_one_model(tmp_path):
     assert config["distributed"] == {"world_size": 2, "backend": "gloo"}
 
     # Each rank hashed its own final weights: the replicas are bit-identical and rank 0 saved them.
-    hashes = done["param_sha256"]
-    assert len(hashes) == 2 and hashes[0] == hashes[1]
     last = torch.load(out / "last.pt", weights_only=True)
-    assert last["world_size"] == 2 and state_sha256(last["state_dict"]) == hashes[0]
+    assert last["world_size"] == 2 and state_sha256(last["state_dict"]) == replica_hash(done)
 
 
 @pytest.fixture(scope="module")
@@ -72,13 +89,7 @@ TINY_SAMPLER_RUN += ["--val-hypotheses", "16", "--val-frames", "1", "--backend",
 
 def test_torchrun_two_processes_train_one_sampler(tmp_path, sampler_dataset):
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2"]
-    cmd += ["-m", "cuboidcli.cli.main", "train", "sampler", str(sampler_dataset), *TINY_SAMPLER_RUN]
-    cmd += ["--out", str(out)]
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    env.pop("CUBOIDS_DIST_BACKEND", None)
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    proc = torchrun(tmp_path, "train", "sampler", sampler_dataset, *TINY_SAMPLER_RUN, "--out", out)
 
     # One set of outputs, written by rank 0 alone; rank 0 alone reports (on stderr).
     names = sorted(p.name for p in out.iterdir())
@@ -96,15 +107,13 @@ def test_torchrun_two_processes_train_one_sampler(tmp_path, sampler_dataset):
 
     # Each rank hashed its own final weights: the replicas are bit-identical and rank 0 saved them.
     (end,) = [r for r in records if r["event"] == "end"]
-    hashes = end["param_sha256"]
-    assert end["world_size"] == 2 and len(hashes) == 2 and hashes[0] == hashes[1]
+    assert end["world_size"] == 2
+    weights_hash = replica_hash(end)
     last = torch.load(out / "last.pt", weights_only=True)
-    assert last["world_size"] == 2 and state_sha256(last["state_dict"]) == hashes[0]
+    assert last["world_size"] == 2 and state_sha256(last["state_dict"]) == weights_hash
     best = torch.load(out / "sampler_v2.pt", weights_only=True)
-    assert state_sha256(best["state_dict"]) == hashes[0]
-    # Every rank's draw generator is in the checkpoint, and the ranks drew differently.
-    assert len(last["draw_rngs"]) == 2 and not torch.equal(last["draw_rngs"][0], last["draw_rngs"][1])
-    assert torch.equal(last["draw_rng"], last["draw_rngs"][0])
+    assert state_sha256(best["state_dict"]) == weights_hash
+    assert_per_rank_draws(last)
 
 
 @pytest.fixture(scope="module")
@@ -144,14 +153,10 @@ def test_torchrun_two_processes_finetune(tmp_path, finetune_setup):
     from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
 
     out = tmp_path / "run"
-    cmd = [sys.executable, "-m", "torch.distributed.run", "--standalone", "--nproc_per_node", "2"]
-    cmd += ["-m", "cuboidcli.cli.main", "train", "finetune", str(finetune_setup / "data"), *TINY_FINETUNE_RUN]
-    cmd += ["--sampler-weights", str(finetune_setup / "sampler.pt")]
-    cmd += ["--depth-weights", str(finetune_setup / "depth.pt"), "--out", str(out)]
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    env.pop("CUBOIDS_DIST_BACKEND", None)
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120, env=env, cwd=tmp_path)
-    assert proc.returncode == 0, proc.stdout + proc.stderr
+    args = ["train", "finetune", finetune_setup / "data", *TINY_FINETUNE_RUN]
+    args += ["--sampler-weights", finetune_setup / "sampler.pt"]
+    args += ["--depth-weights", finetune_setup / "depth.pt"]
+    proc = torchrun(tmp_path, *args, "--out", out)
 
     # One set of outputs, written by rank 0 alone; rank 0 alone reports (on stderr).
     names = sorted(p.name for p in out.iterdir())
@@ -170,20 +175,17 @@ def test_torchrun_two_processes_finetune(tmp_path, finetune_setup):
 
     # Each rank hashed its own final weights: the replicas are bit-identical and rank 0 saved them.
     (end,) = [r for r in records if r["event"] == "end"]
-    hashes = end["param_sha256"]
-    assert end["world_size"] == 2 and len(hashes) == 2 and hashes[0] == hashes[1]
+    assert end["world_size"] == 2
     last = torch.load(out / "last.pt", weights_only=True)
     flat = {f"{k}.{n}": t for k, sd in last["nets"].items() for n, t in sd.items()}
-    assert last["world_size"] == 2 and state_sha256(flat) == hashes[0]
+    assert last["world_size"] == 2 and state_sha256(flat) == replica_hash(end)
     # The depth network moved (so equal hashes mean the gradients were summed), the fixed sampler did not.
     start = torch.load(finetune_setup / "depth.pt", weights_only=True)["state_dict"]
     moved = any(not torch.equal(start[k], v) for k, v in last["nets"]["depth"].items())
     assert moved, "no gradient at all: pick another --seed whose draws are not all at the loss clamp"
     start = torch.load(finetune_setup / "sampler.pt", weights_only=True)["state_dict"]
     assert all(torch.equal(start[k], v) for k, v in last["nets"]["sampler"].items())
-    # Every rank's draw generator is in the checkpoint, and the ranks drew differently.
-    assert len(last["draw_rngs"]) == 2 and not torch.equal(last["draw_rngs"][0], last["draw_rngs"][1])
-    assert torch.equal(last["draw_rng"], last["draw_rngs"][0])
+    assert_per_rank_draws(last)
 
 
 @pytest.mark.parametrize("world", ["1", "2"])

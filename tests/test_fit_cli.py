@@ -145,8 +145,13 @@ def test_depth_formats_npy_npz_exr(tmp_path, room_depth):
     assert (got[:20] == 0).all() and np.isfinite(got).all()
 
 
-def test_rgb_only_uses_the_depth_estimator(tmp_path):
-    """Without --depth the built-in depth network (a tiny random one here) provides the depth, and says so."""
+#: Exactly one cuboid, quickly: whatever a tiny random depth network predicts.
+ONE_CUBOID = ["--hypotheses", "64", "--theta", "-1e9", "--max-cuboids", "1"]
+
+
+@pytest.fixture
+def tiny_depth_weights(tmp_path):
+    """A tiny random built-in depth network, saved as a checkpoint."""
     import torch
 
     from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict
@@ -154,26 +159,16 @@ def test_rgb_only_uses_the_depth_estimator(tmp_path):
     torch.manual_seed(0)
     weights = tmp_path / "depth.pt"
     torch.save(checkpoint_dict(DepthNet(DepthNetConfig(channels=(4, 8, 8, 8, 8)))), weights)
+    return weights
+
+
+def test_rgb_only_uses_the_depth_estimator(tmp_path, tiny_depth_weights):
+    """Without --depth the built-in depth network (a tiny random one here) provides the depth, and says so."""
     rgb = (np.random.default_rng(0).uniform(0, 255, (120, 160, 3))).astype(np.uint8)
     img = tmp_path / "rgb.png"
     cv2.imwrite(str(img), rgb)
     out = tmp_path / "rgb.json"
-    r = run(
-        "fit",
-        img,
-        "-K",
-        "130,130,80,60",
-        "--depth-model",
-        weights,
-        "-o",
-        out,
-        "--hypotheses",
-        "64",
-        "--theta",
-        "-1e9",
-        "--max-cuboids",
-        "1",
-    )
+    r = run("fit", img, "-K", "130,130,80,60", "--depth-model", tiny_depth_weights, "-o", out, *ONE_CUBOID)
     assert r.exit_code == 0, r.output
     assert "depth estimated from RGB" in r.output
     d = json.loads(out.read_text())
@@ -188,21 +183,13 @@ def test_rgb_only_uses_the_depth_estimator(tmp_path):
     assert r.exit_code == 2 and "not found" in r.output
 
 
-def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch):
+def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch, tiny_depth_weights):
     """IMAGE may be a folder: every colour image is fitted from estimated depth, depth PNGs next to the photos
     are left out with one note, per-frame intrinsics are found by the frame name without "_rgb", and the
     depth network is loaded once for the whole folder."""
-    import json as jsonlib
-
-    import torch
-
     from cuboidcli.depth import estimator as estimator_mod
-    from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict
     from cuboidcli.fitting import frame as frame_mod
 
-    torch.manual_seed(0)
-    weights = tmp_path / "depth.pt"
-    torch.save(checkpoint_dict(DepthNet(DepthNetConfig(channels=(4, 8, 8, 8, 8)))), weights)
     folder = tmp_path / "frames"
     folder.mkdir()
     rng = np.random.default_rng(0)
@@ -211,7 +198,7 @@ def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch):
         cv2.imwrite(str(folder / f"{name}_rgb.jpg"), rng.uniform(0, 255, (120, 160, 3)).astype(np.uint8))
         cv2.imwrite(str(folder / f"{name}_depth.png"), np.full((120, 160), 2000, np.uint16))
         cams[name] = {"fx": 130.0, "fy": 130.0, "cx": 80.0, "cy": 60.0}
-    (folder / "cameras.json").write_text(jsonlib.dumps(cams))
+    (folder / "cameras.json").write_text(json.dumps(cams))
     loads = []
     real = estimator_mod.BuiltinDepthEstimator.__init__
     monkeypatch.setattr(
@@ -221,24 +208,12 @@ def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch):
     )
     frame_mod.depth_estimator.cache_clear()
     out = tmp_path / "out"
-    args = (
-        "--depth-model",
-        weights,
-        "-o",
-        out,
-        "--hypotheses",
-        "64",
-        "--theta",
-        "-1e9",
-        "--max-cuboids",
-        "1",
-    )
-    r = run("fit", folder, *args)
+    r = run("fit", folder, "--depth-model", tiny_depth_weights, "-o", out, *ONE_CUBOID)
     assert r.exit_code == 0, r.output
     assert "left out 2 files" in r.output and r.output.count("depth estimated from RGB") == 1
     assert sorted(p.name for p in out.iterdir()) == ["a_rgb_cuboids.json", "b_rgb_cuboids.json"]
     for name in ("a", "b"):
-        d = jsonlib.loads((out / f"{name}_rgb_cuboids.json").read_text())
+        d = json.loads((out / f"{name}_rgb_cuboids.json").read_text())
         assert d["input"]["depth"] is None and d["timing_s"]["depth"] > 0 and len(d["cuboids"]) == 1
         assert d["camera"]["fx"] == 130.0
     assert len(loads) == 1
