@@ -50,8 +50,12 @@ def test_stopping_criterion_and_max_cuboids(room_depth, nyu_camera):
     cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, max_cuboids=2, theta=-1e9))
     assert len(cubs) == 2 and info.stop_reason == "max_cuboids"
     # a huge theta rejects everything: no cuboid is ever reported below the threshold
+    cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, theta=3000.0))
+    assert cubs == [] and info.stop_reason == "gain_below_theta" and info.rejected_gain < 3000.0
+    assert info.batches and info.batches[0] >= 1
+    # a theta above the number of points: nothing can reach it, the step stops without drawing
     cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, theta=1e6))
-    assert cubs == [] and info.stop_reason == "gain_below_theta" and info.rejected_gain < 1e6
+    assert cubs == [] and info.batches == [0] and info.rejected_gain is None
 
 
 def test_fitting_grid_excludes_invalid_depth(nyu_camera):

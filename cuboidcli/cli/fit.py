@@ -98,10 +98,27 @@ def _str_or_none(p) -> str | None:
 
 
 def _config(
-    hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast, refine=True
+    hypotheses,
+    max_cuboids,
+    sampler,
+    solver,
+    seed,
+    device,
+    theta,
+    grid_step,
+    no_oai,
+    fast,
+    refine=True,
+    local_fraction=None,
+    max_batches=None,
 ):
     from cuboidcli.fitting.config import FitConfig
 
+    defaults = FitConfig()
+    if local_fraction is not None and not 0.0 <= local_fraction <= 1.0:
+        fail(f"--local-fraction must be between 0 and 1 (got {local_fraction})")
+    if max_batches is not None and max_batches < 1:
+        fail(f"--max-batches must be at least 1 (got {max_batches})")
     if hypotheses < 1:
         fail(f"--hypotheses must be at least 1 (got {hypotheses})")
     if max_cuboids < 1:
@@ -124,6 +141,8 @@ def _config(
         occlusion_aware=not no_oai,
         prescore_points=600 if fast else 0,
         refine=refine,
+        local_fraction=defaults.local_fraction if local_fraction is None else local_fraction,
+        max_batches=defaults.max_batches if max_batches is None else max_batches,
     )
 
 
@@ -183,7 +202,18 @@ def fit(
         False, "--fast", help="Approximate scoring: rank hypotheses on 600 points first."
     ),
     refine: bool = typer.Option(
-        True, "--refine/--no-refine", help="Refine each selected cuboid on its inliers."
+        True, "--refine/--no-refine", help="Refine (and grow) each selected cuboid on its inliers."
+    ),
+    local_fraction: float = typer.Option(
+        None,
+        "--local-fraction",
+        help="Share of minimal sets drawn from a 3D ball around their first point [default: 0.75]; "
+        "0 = the paper's global sets.",
+    ),
+    max_batches: int = typer.Option(
+        None,
+        "--max-batches",
+        help="Most batches of hypotheses per step when the best misses Theta [default: 4]; 1 = the paper.",
     ),
     glb: bool = typer.Option(False, "--glb", help="Also write <out>.glb."),
     ply: bool = typer.Option(False, "--ply", help="Also write <out>_points.ply and <out>_cuboids.ply."),
@@ -213,7 +243,19 @@ def fit(
     if depth_model_kind not in ("metric", "relative", "relative-inverse"):
         fail(f"--depth-model-kind {depth_model_kind!r}: choose metric, relative or relative-inverse")
     config = _config(
-        hypotheses, max_cuboids, sampler, solver, seed, device, theta, grid_step, no_oai, fast, refine
+        hypotheses,
+        max_cuboids,
+        sampler,
+        solver,
+        seed,
+        device,
+        theta,
+        grid_step,
+        no_oai,
+        fast,
+        refine,
+        local_fraction,
+        max_batches,
     )
     if solver == "onnx" and onnx is None:
         fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
@@ -386,6 +428,8 @@ def demo(
         no_oai=False,
         fast=False,
         refine=True,
+        local_fraction=None,
+        max_batches=None,
         glb=True,
         ply=True,
         overlay=True,

@@ -29,6 +29,21 @@ class FitConfig:
     sampler: str = "sequential"
     """uniform | sequential (weights 1 - max(state, 0): Sequential RANSAC, points already explained are
     drawn less) | learned (the sampling-weight network, Sec. 3.2.1)."""
+    local_fraction: float = 0.75
+    """Share of each batch's hypotheses whose minimal set is localised: the first point from the sampling
+    weights, the other C - 1 from a 3D ball around it (fitting/proposals.py). The rest are global sets
+    (all C points from the sampling weights, the paper's). 0 = the paper's sampling."""
+    local_radii_m: tuple[float, ...] = (0.15, 0.3, 0.6, 1.2)
+    """Radii (m) of the balls of localised sets, one drawn per hypothesis."""
+    max_batches: int = 4
+    """Adaptive termination: when the best hypothesis of a step does not gain Theta, further batches of
+    |H| hypotheses are drawn, up to this many per step, until a structure that would gain Theta would
+    have been drawn with probability ``confidence``. 1 = the paper (one batch, then stop)."""
+    confidence: float = 0.99
+    """Adaptive termination: the probability of having drawn a structure that gains Theta."""
+    local_success: float = 0.05
+    """Adaptive termination: assumed probability that a localised set seeded on a structure yields a
+    hypothesis that wins it (a conservative figure; global sets count as never winning a small one)."""
     solver: str = "numerical"
     """numerical (PCA + Adam) | neural (regression network) | onnx."""
     a_min: float = 1e-3
@@ -47,6 +62,12 @@ class FitConfig:
     refine: bool = True
     """Refine each selected cuboid on its inliers by minimising their occlusion-aware distance, keeping it
     only if the inlier-count gain does not drop (fitting/refine.py). False = the paper's plain estimator."""
+    grow_rounds: int = 8
+    """After refinement, up to this many rounds push the winner's faces outwards while its inlier-count
+    gain rises (fitting/pipeline.py grow_cuboid): a minimal set of six points spans only part of a wall or
+    a table. 0 = no growing."""
+    grow_step_m: float = 0.1
+    """Smallest step a face is pushed by when growing, m (also the resolution at which a box ends)."""
     refine_max_points: int = 1024
     """At most this many inliers (a fixed random subset) enter the refinement."""
     seed: int = 0
@@ -63,6 +84,16 @@ class FitConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.local_fraction <= 1.0:
+            raise ValueError(f"local_fraction must be in [0, 1], got {self.local_fraction}")
+        if self.max_batches < 1:
+            raise ValueError(f"max_batches must be at least 1, got {self.max_batches}")
+        if not 0.0 < self.confidence < 1.0:
+            raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
+        if not self.local_radii_m or min(self.local_radii_m) <= 0:
+            raise ValueError(f"local_radii_m must be positive radii, got {self.local_radii_m}")
 
 
 #: Outdoor settings of the paper's SMH experiments.

@@ -146,6 +146,7 @@ def make_result(
     fit_info = {
         "n_points": info.n_points,
         "iterations": info.iterations,
+        "batches": info.batches,
         "stop_reason": info.stop_reason,
         "rejected_gain": info.rejected_gain,
         "gains": info.gains,

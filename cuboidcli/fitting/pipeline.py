@@ -19,7 +19,7 @@ from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import OCCLUDED
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.sampling import Sampler, SamplingContext, draw_minimal_sets, make_sampler
+from cuboidcli.fitting.sampling import Sampler, SamplingContext, draw_hypotheses, make_sampler
 from cuboidcli.fitting.scoring import ScoreParams, select_best, values_torch
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.solvers.base import CuboidSolver, SizeBounds
@@ -42,6 +42,9 @@ class FitInfo:
     """Valid fitting points n."""
     iterations: int = 0
     """Sampling steps run, including a final step whose best hypothesis was rejected."""
+    batches: list[int] = field(default_factory=list)
+    """Batches of |H| hypotheses drawn in each step (adaptive termination draws more when a step's best
+    hypothesis misses Theta); 0 for a final step skipped because no hypothesis could gain Theta."""
     stop_reason: str = ""
     """max_cuboids | gain_below_theta | too_few_points."""
     rejected_gain: float | None = None
@@ -67,6 +70,7 @@ class PreparedPoints:
     grid_index: torch.Tensor  # (N,) flat index into the fitting grid
     grid_shape: tuple[int, int]
     depth_grid: torch.Tensor  # (Hs, Ws) metres, 0 = invalid
+    focal_cells: tuple[float, float] | None = None  # (fx, fy) / grid_step: focal lengths in grid cells
 
 
 def prepare_points(
@@ -82,6 +86,7 @@ def prepare_points(
         grid_index=torch.from_numpy(ok),
         grid_shape=depth_grid.shape,
         depth_grid=torch.from_numpy(depth_grid.astype(np.float32)).to(device),
+        focal_cells=(camera.fx / grid_step, camera.fy / grid_step),
     )
 
 
@@ -129,6 +134,17 @@ def ensure_compiled() -> None:
     init = np.zeros((1, 9))
     init[0, 6:] = 0.1
     adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy())
+    from cuboidcli.fitting.proposals import ball_minimal_sets
+
+    ball_minimal_sets(
+        torch.tensor([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]]),
+        torch.tensor([0, 1]),
+        (1, 2),
+        torch.tensor([0]),
+        6,
+        torch.Generator().manual_seed(0),
+        focal_cells=(60.0, 60.0),
+    )
     _COMPILED = True
 
 
@@ -160,32 +176,25 @@ def fit_points(
             info.stop_reason = "max_cuboids"
             break
         info.iterations += 1
-        t = time.perf_counter()
         ctx = SamplingContext(
             pts, prep.grid_index, prep.grid_shape, prep.depth_grid, state.float(), len(cuboids)
         )
-        with torch.no_grad():
-            if hasattr(sampler, "draw"):
-                idx = sampler.draw(ctx, config.hypotheses, config.min_set, gen)
-            else:
-                p, q = sampler.distributions(ctx)
-                idx = draw_minimal_sets(p, q, config.hypotheses, config.min_set, gen)
-        idx = idx.to(pts.device)
-        t2 = time.perf_counter()
-        timing["sample"] += t2 - t
-        centers, half, rot = solver(pts[idx])
-        t3 = time.perf_counter()
-        timing["solve"] += t3 - t2
-        best, gain, _ = select_best(
-            pts, centers, half, rot, state, sp, gen, config.prescore_points, config.rescore_top
+        ctx.focal_cells = prep.focal_cells
+        if not gain_upper_bound(state) > info.theta:  # no hypothesis can gain Theta: stop without drawing
+            info.stop_reason = "gain_below_theta"
+            info.rejected_gain = None
+            info.batches.append(0)
+            break
+        gain, best_hyp, batches = _search_step(
+            ctx, sampler, solver, state, sp, config, gen, info.theta, timing
         )
+        info.batches.append(batches)
         t4 = time.perf_counter()
-        timing["score"] += t4 - t3
         if not gain > info.theta:
             info.stop_reason = "gain_below_theta"
             info.rejected_gain = gain
             break
-        c_b, a_b, R_b = centers[best : best + 1], half[best : best + 1], rot[best : best + 1]
+        c_b, a_b, R_b = best_hyp
         values = _values_one(pts, c_b, a_b, R_b, sp)
         if config.refine:
             c_b, a_b, R_b, values, gain = _refine(pts, c_b, a_b, R_b, values, state, gain, sp, config, gen)
@@ -204,8 +213,158 @@ def fit_points(
     return cuboids, info
 
 
+def _search_step(ctx, sampler, solver, state, sp: ScoreParams, config: FitConfig, gen, theta, timing):
+    """The best hypothesis of one step: batches of |H| minimal sets are drawn, solved and scored until the
+    best gains Theta, the miss probability falls below 1 - confidence, or ``config.max_batches`` is
+    reached. Returns (gain, (centers, half_sizes, rotations) of the best as (1, ...) tensors, batches)."""
+    pts = ctx.points
+    local_frac = float(getattr(sampler, "local_fraction", config.local_fraction))
+    gain, best, batches = -np.inf, None, 0
+    t = time.perf_counter()
+    with torch.no_grad():
+        dists = sampler.distributions(ctx)
+    timing["sample"] += time.perf_counter() - t
+    while True:
+        t = time.perf_counter()
+        with torch.no_grad():
+            _, idx, _ = draw_hypotheses(
+                sampler, ctx, config.hypotheses, config.min_set, gen, local_frac, config.local_radii_m, dists
+            )
+        idx = idx.to(pts.device)
+        t2 = time.perf_counter()
+        timing["sample"] += t2 - t
+        centers, half, rot = solver(pts[idx])
+        t3 = time.perf_counter()
+        timing["solve"] += t3 - t2
+        b, g, _ = select_best(
+            pts, centers, half, rot, state, sp, gen, config.prescore_points, config.rescore_top
+        )
+        timing["score"] += time.perf_counter() - t3
+        batches += 1
+        if g > gain:
+            gain, best = g, (centers[b : b + 1], half[b : b + 1], rot[b : b + 1])
+        if gain > theta or batches >= config.max_batches:
+            return gain, best, batches
+        if miss_probability(dists, state, theta, config, local_frac, batches) <= 1.0 - config.confidence:
+            return gain, best, batches
+
+
+def gain_upper_bound(state: torch.Tensor) -> float:
+    """The largest inlier-count gain any cuboid could add: a point with state s >= 0 gains at most 1 - s,
+    an occluded point (s < 0) nothing (combine keeps the minimum of negative values)."""
+    s = state.double()
+    return float((1.0 - s[s >= 0].clamp_max(1.0)).sum())
+
+
+def miss_probability(
+    dists: tuple[torch.Tensor, torch.Tensor],
+    state: torch.Tensor,
+    theta: float,
+    config: FitConfig,
+    local_fraction: float,
+    batches: int,
+) -> float:
+    """Probability that ``batches`` batches missed a structure that would gain Theta; ``dists`` = the
+    sampler's (p (Q, N), q (Q,)) of the step.
+
+    Such a structure holds at least Theta points that are not yet explained (state < 0.5). Under the
+    sampler's first-point distribution (the mixture sum_j q_j p_j) it is seeded with probability
+    m = Theta * (mean weight of an unexplained point); a localised set seeded on it wins it with probability
+    ``config.local_success``; global sets are counted as never winning it (their six points must all land
+    on it: m^6). The miss probability of H hypotheses per batch is (1 - f m rho)^(H b).
+    """
+    p, q = dists
+    mix = (q[:, None] * p).sum(0).cpu()
+    open_ = (state.cpu() < 0.5) & (state.cpu() >= 0)
+    n_open = int(open_.sum())
+    if n_open < theta:
+        return 0.0
+    m = min(theta * float(mix[open_].sum()) / n_open, 1.0)
+    hit = local_fraction * m * config.local_success + (1.0 - local_fraction) * m**config.min_set
+    if hit <= 0.0:
+        return 1.0
+    return float(np.exp(config.hypotheses * batches * np.log1p(-min(hit, 1.0 - 1e-12))))
+
+
 def _refine(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator):
-    """Refine the winner on the points it newly explains; keep the result only if the gain holds."""
+    """Refine the winner on the points it newly explains, grow it face by face
+    (:func:`grow_cuboid`), and refine the grown box again. Each result is kept only if the gain holds."""
+    c, a, R, values, gain = _refine_once(pts, c, a, R, values, state, gain, sp, config, gen)
+    if config.grow_rounds < 1:
+        return c, a, R, values, gain
+    c2, a2, values2, gain2 = grow_cuboid(pts, c, a, R, state, gain, sp, config)
+    if gain2 <= gain:
+        return c, a, R, values, gain
+    return _refine_once(pts, c2, a2, R, values2, state, gain2, sp, config, gen)
+
+
+def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
+    """Push each face of a cuboid outwards while the inlier-count gain rises (region growing).
+
+    A minimal set of six points spans only part of a wall, a floor or a table top, and the solver's box
+    ends at those points. Each round tries every face (for a slab, the faces across its thickness, an
+    axis under a quarter of the middle one, stay): first a step of half the box's extent along that axis
+    (at least ``config.grow_step_m``), then a step of ``grow_step_m``; a move is kept when the gain rises,
+    and a face that cannot move is done. Sizes stay within a_max. A big step may overshoot into space
+    without points, so each face is then pulled back in steps of 0.8 ... ``grow_step_m`` m as long as the
+    gain drops by less than 0.1 %: the box ends where its surface ends. Returns (center, half, values,
+    gain) with (1, 3) tensors; the inputs when nothing grew."""
+    c = c.clone()
+    a = a.clone()
+    values = None
+    axes = R[0].double()
+    order = torch.argsort(a[0])
+    slab_axis = int(order[0]) if a[0, order[0]] < 0.25 * a[0, order[1]] else -1
+    faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
+    done: set = set()
+    for _ in range(config.grow_rounds):
+        moved = False
+        for k, sgn in faces:
+            if (k, sgn) in done:
+                continue
+            grew = False
+            for step in (max(float(a[0, k]), config.grow_step_m), config.grow_step_m):
+                new_half = min(float(a[0, k]) + 0.5 * step, config.a_max)
+                grow = new_half - float(a[0, k])
+                if grow <= 1e-6:
+                    break
+                c2 = c + (sgn * grow * axes[:, k]).to(c.dtype)[None]
+                a2 = a.clone()
+                a2[0, k] = new_half
+                v2 = _values_one(pts, c2, a2, R, sp)
+                g2 = float((combine(v2, state) - state).sum())
+                if g2 > gain + 1e-6:
+                    c, a, values, gain, grew = c2, a2, v2, g2, True
+                    break
+            if grew:
+                moved = True
+            else:
+                done.add((k, sgn))
+        if not moved:
+            break
+    if values is None:
+        return c, a, _values_one(pts, c, a, R, sp), gain
+    # big steps may overshoot into space without points: pull each face back while no gain is lost
+    floor = gain - 1e-3 * abs(gain)
+    for k, sgn in faces:
+        for step in (0.8, 0.4, 0.2, config.grow_step_m):
+            while float(a[0, k]) - 0.5 * step >= config.a_min:
+                c2 = c - (sgn * 0.5 * step * axes[:, k]).to(c.dtype)[None]
+                a2 = a.clone()
+                a2[0, k] -= 0.5 * step
+                v2 = _values_one(pts, c2, a2, R, sp)
+                g2 = float((combine(v2, state) - state).sum())
+                if g2 < floor:
+                    break
+                c, a, values, gain = c2, a2, v2, g2
+    return c, a, values, gain
+
+
+def _refine_once(
+    pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator, force=False
+):
+    """Refine a cuboid on the points it newly explains; keep the result only if the gain holds (or, with
+    ``force``, always: the caller compares)."""
     from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
 
     inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)

@@ -29,6 +29,9 @@ class SamplingContext:
     depth_grid: Tensor
     state: Tensor
     step: int
+    focal_cells: tuple[float, float] | None = None
+    """Focal lengths in fitting-grid cells (fx / grid_step, fy / grid_step); None = estimated from the
+    points when a localised proposal needs them."""
 
 
 class Sampler(Protocol):
@@ -66,43 +69,11 @@ class SequentialSampler:
 
 
 class LocalSampler(SequentialSampler):
-    """Sequential-RANSAC weights for the first point of a minimal set, the other C - 1 points drawn from a
-    window of the fitting grid around it (NAPSAC-style localised sampling; not in the paper).
-
-    A structure covering a fraction f of the points yields an all-inlier set with probability ~f^6 under
-    global sampling (1e-4 for f = 0.2), so small furniture is rarely found without a learned sampler; drawn
-    from a neighbourhood, the six points usually share a structure. The window half-width is drawn per
-    hypothesis from [2, 12] grid cells (16-96 pixels at the default grid step) to cover several scales.
-    """
+    """Sequential-RANSAC weights for the first point; every minimal set localised in a 3D ball around it
+    (``local_fraction`` 1, whatever the configuration says; see :mod:`cuboidcli.fitting.proposals`)."""
 
     name = "local"
-    min_half_width = 2
-    max_half_width = 12
-
-    def draw(self, ctx: SamplingContext, hypotheses: int, min_set: int, generator: torch.Generator) -> Tensor:
-        p, q = self.distributions(ctx)
-        seeds = draw_minimal_sets(p, q, hypotheses, 1, generator)[:, 0]
-        hs, ws = ctx.grid_shape
-        gi = ctx.grid_index.cpu()
-        cell_to_point = torch.full((hs * ws,), -1, dtype=torch.long)
-        cell_to_point[gi] = torch.arange(gi.numel())
-        rows, cols = gi[seeds] // ws, gi[seeds] % ws
-        half = torch.randint(
-            self.min_half_width, self.max_half_width + 1, (hypotheses, 1), generator=generator
-        )
-        idx = seeds[:, None].repeat(1, min_set)
-        todo = torch.ones(hypotheses, min_set - 1, dtype=torch.bool)
-        for _ in range(6):  # redraw cells without valid depth a few times, then keep the seed point
-            u = torch.rand(hypotheses, min_set - 1, 2, generator=generator)
-            r = (rows[:, None] + ((2 * u[..., 0] - 1) * (half + 0.5)).round().long()).clamp(0, hs - 1)
-            c = (cols[:, None] + ((2 * u[..., 1] - 1) * (half + 0.5)).round().long()).clamp(0, ws - 1)
-            cand = cell_to_point[r * ws + c]
-            take = todo & (cand >= 0)
-            idx[:, 1:] = torch.where(take, cand, idx[:, 1:])
-            todo &= ~take
-            if not todo.any():
-                break
-        return idx
+    local_fraction = 1.0
 
 
 def draw_sets_and_maps(
@@ -133,6 +104,46 @@ def draw_minimal_sets(
 ) -> Tensor:
     """Indices (H, C) of minimal sets drawn as :func:`draw_sets_and_maps`."""
     return draw_sets_and_maps(p, q, hypotheses, min_set, generator)[1]
+
+
+def draw_hypotheses(
+    sampler: Sampler,
+    ctx: SamplingContext,
+    hypotheses: int,
+    min_set: int,
+    generator: torch.Generator,
+    local_fraction: float = 0.0,
+    radii_m: tuple[float, ...] | None = None,
+    dists: tuple[Tensor, Tensor] | None = None,
+) -> tuple[Tensor, Tensor, Tensor]:
+    """One batch of minimal sets: the first ``round(local_fraction * hypotheses)`` localised (first point
+    from the sampler's maps, the others from a 3D ball around it), the rest global (all C points from the
+    maps, the paper's sets). Returns (maps (H,), indices (H, C), local (H,) bool), all on the CPU."""
+    from cuboidcli.fitting.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
+
+    frac = float(getattr(sampler, "local_fraction", local_fraction))
+    n_local = min(max(round(frac * hypotheses), 0), hypotheses)
+    p, q = dists if dists is not None else sampler.distributions(ctx)
+    maps = torch.empty(hypotheses, dtype=torch.long)
+    idx = torch.empty(hypotheses, min_set, dtype=torch.long)
+    if n_local:
+        maps[:n_local], seeds = draw_sets_and_maps(p, q, n_local, 1, generator)
+        idx[:n_local] = ball_minimal_sets(
+            ctx.points,
+            ctx.grid_index,
+            ctx.grid_shape,
+            seeds[:, 0],
+            min_set,
+            generator,
+            radii_m or DEFAULT_RADII_M,
+            neighbour_weights(ctx.state),
+            ctx.focal_cells,
+        )
+    if n_local < hypotheses:
+        maps[n_local:], idx[n_local:] = draw_sets_and_maps(p, q, hypotheses - n_local, min_set, generator)
+    local = torch.zeros(hypotheses, dtype=torch.bool)
+    local[:n_local] = True
+    return maps, idx, local
 
 
 def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:
