@@ -69,6 +69,9 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument(
+        "--weights", type=Path, default=None, help="weights of the learned sampler (.pt or folder)"
+    )
     args = ap.parse_args()
 
     datasets = []
@@ -86,7 +89,9 @@ def main() -> None:
         for name, overrides in variants:
             config = replace(FitConfig(), **overrides)
             t = time.perf_counter()
-            report = evaluate(frames, config, EvalSettings(runs=args.runs, seed=args.seed))
+            report = evaluate(
+                frames, config, EvalSettings(runs=args.runs, seed=args.seed, weights_dir=args.weights)
+            )
             summary = {k: v[0] for k, v in report.summary.items() if isinstance(v, tuple)}
             parsimony = report.summary.get("parsimony")
             results["results"].setdefault(data_name, {})[name] = {"summary": summary, "parsimony": parsimony}

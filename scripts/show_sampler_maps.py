@@ -1,4 +1,5 @@
-"""Save the learned sampler's Q sampling-weight maps for a frame as one PNG (RGB | map 1..Q), for the first
+"""Save the learned sampler's Q sampling-weight maps for a frame as one PNG (RGB | Sequential-RANSAC
+weights | map 1..Q; each tile scaled to its own maximum), for the first
 step (empty state) of the estimator, or with ``--after K`` for the step after K cuboids were selected (the
 estimator runs with the learned sampler first). Used to inspect what the network attends to.
 
@@ -48,16 +49,20 @@ def main() -> None:
     tiles = []
     rgb = frame.rgb()
     tiles.append(cv2.resize(rgb if rgb is not None else np.zeros((h, w, 3), np.uint8), (w // 2, h // 2)))
-    for j in range(p.shape[0]):
+    prior = (1.0 - state.double().clamp(0.0, 1.0)).clamp_min(0.0)
+    maps = [("prior (sequential)", prior / prior.sum())] + [
+        (f"map {j + 1}  q={float(q[j]):.2f}", p[j]) for j in range(p.shape[0])
+    ]
+    for label, pj in maps:
         grid = np.zeros(hs * ws)
-        grid[prep.grid_index.numpy()] = p[j].numpy()
+        grid[prep.grid_index.numpy()] = pj.numpy()
         img = (255 * grid / max(grid.max(), 1e-12)).reshape(hs, ws).astype(np.uint8)
         img = cv2.applyColorMap(
             cv2.resize(img, (w // 2, h // 2), interpolation=cv2.INTER_NEAREST), cv2.COLORMAP_INFERNO
         )[..., ::-1].copy()
         cv2.putText(
             img,
-            f"map {j + 1}  q={float(q[j]):.2f}",
+            label,
             (8, 22),
             cv2.FONT_HERSHEY_SIMPLEX,
             0.6,

@@ -98,6 +98,15 @@ def test_cli_writes_outputs_and_saved_fits_reevaluate_to_the_same_numbers(app, f
     with open(out / "frames.csv", newline="") as fh:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 6 and rows[0]["frame"] == "f0" and "auc5cm_pct" in rows[0]
+    # the parsimony curve up to --max-cuboids 3, per run and as mean/std; no instance images: no objects
+    curve = doc["runs"][0]["parsimony"]
+    assert curve["k"] == [1, 2, 3] and len(curve["auc20cm_pct"]) == len(curve["coverage_pct"]) == 3
+    assert curve["auc20cm_pct"][-1] == pytest.approx(doc["runs"][0]["auc20cm_pct"], rel=1e-12)
+    assert curve["coverage_pct"][-1] == pytest.approx(doc["runs"][0]["coverage_pct"], rel=1e-12)
+    assert set(doc["summary"]["parsimony"]) == {"mean", "std"}
+    assert doc["summary"]["parsimony"]["mean"]["k"] == [1, 2, 3]
+    assert "parsimony: first k cuboids" in res.output
+    assert "object_recall_pct" not in doc["runs"][0] and "object_recall_pct" not in rows[0]
     # re-evaluate run 0 from the saved files: identical numbers, time included (read from the files)
     again = tmp_path / "again"
     saved = out / "fits" / "seed0"
@@ -119,6 +128,48 @@ def test_exact_ground_truth_fits_score_perfectly(app, folder, tmp_path):
     assert run["auc20cm_pct"] > 99.5 and run["auc5cm_pct"] > 98.0
     for key in ("recall_iou0.25_pct", "precision_iou0.25_pct", "recall_iou0.5_pct", "precision_iou0.5_pct"):
         assert run[key] == 100.0
+
+
+def test_instance_images_give_object_recall_and_precision(app, tmp_path):
+    """A folder with instances/<name>.png (uint16 ids beyond 255) scored with saved fits: the ground truth
+    explains every object; one extra cuboid far away lowers precision only."""
+    from cuboidcli.synth.render import render_boxes
+
+    data, fits = tmp_path / "data", tmp_path / "fits"
+    (data / "depth").mkdir(parents=True)
+    (data / "instances").mkdir()
+    names = ["f0", "f1"]
+    far_away = Cuboid([0.0, 0.0, 30.0], [0.5, 0.5, 0.5], np.eye(3))
+    for i, name in enumerate(names):
+        depth, inst = render_boxes(scene(i), CAM)
+        cv2.imwrite(str(data / "depth" / f"{name}.png"), np.round(depth * 1000.0).astype(np.uint16))
+        cv2.imwrite(str(data / "instances" / f"{name}.png"), (300 * inst).astype(np.uint16))
+        pred = scene(i) + ([far_away] if i == 1 else [])
+        write_result(fits / f"{name}.json", FitResult(CAM, pred, timing_s={"total": 0.1}))
+    write_cameras(data, {name: CAM for name in names})
+    frames, _ = load_frames(data)
+    assert np.unique(frames[0].instances()).tolist() == [300, 600]  # the room fills the background
+    out = tmp_path / "out"
+    res = CliRunner().invoke(
+        app, ["evaluate", str(data), "--fits", str(fits), "--max-cuboids", "4", "-o", str(out)]
+    )
+    assert res.exit_code == 0, res.output
+    assert "object recall" in res.output and "parsimony" in res.output
+    doc = metrics_json(out)
+    run = doc["runs"][0]
+    assert run["object_recall_pct"] == 100.0 and run["object_precision_pct"] == pytest.approx(100 * 4 / 5)
+    assert run["objects_eligible"] == 4 and run["frames_with_instances"] == 2
+    assert doc["summary"]["object_precision_pct"]["mean"] == pytest.approx(80.0)
+    assert [r["object_precision_pct"] for r in doc["frames"]] == [100.0, pytest.approx(200 / 3)]
+    with open(out / "frames.csv", newline="") as fh:
+        rows = list(csv.DictReader(fh))
+    assert [float(r["object_recall_pct"]) for r in rows] == [100.0, 100.0]
+    assert [int(r["objects_eligible"]) for r in rows] == [2, 2]
+    curve = run["parsimony"]  # the fits record no settings: K = --max-cuboids
+    assert curve["k"] == [1, 2, 3, 4]
+    assert curve["coverage_pct"] == [100.0] * 4  # the first cuboid, the room, surrounds the camera
+    assert curve["auc5cm_pct"][0] < curve["auc5cm_pct"][1] == curve["auc5cm_pct"][3]
+    assert curve["auc5cm_pct"][3] == pytest.approx(run["auc5cm_pct"], rel=1e-12)
 
 
 def test_workers_give_the_same_numbers_as_one_process(folder):

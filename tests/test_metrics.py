@@ -14,7 +14,7 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.coverage import clip_corners_near, convex_hull_2d, coverage_mask, fill_convex
 from cuboidcli.evaluation.iou import box_iou, greedy_matches, intersection_volume
 from cuboidcli.evaluation.metrics import AucStats, aggregate, auc, frame_metrics, mean_std
-from cuboidcli.evaluation.oa import oa_distances, oa_sq_distances
+from cuboidcli.evaluation.oa import oa_distances, oa_sq_distances, oa_sq_prefix_distances, oa_sq_terms
 from cuboidcli.evaluation.raycast import ray_coverage_mask, render_depth
 from cuboidcli.geometry.kernels import oa_sq_distance
 from cuboidcli.geometry.rotations import quaternion_to_matrix
@@ -58,6 +58,27 @@ def test_fused_oa_distance_matches_reference_kernel(seed):
     ref = oa_sq_distance(torch.tensor(pts), c, a, r).numpy()
     np.testing.assert_allclose(ours, ref, rtol=1e-10, atol=1e-12)
     assert (ref > 0).mean() > 0.5  # the cases are not trivial
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_prefix_oa_distances_equal_the_oa_distance_of_each_prefix_exactly(seed):
+    rng = np.random.default_rng(seed)
+    boxes = random_boxes(rng, 6)
+    pts = rng.uniform([-3, -3, 0.3], [3, 3, 6], size=(4000, 3))
+    pts = np.concatenate([pts, np.concatenate([b.corners() * 0.999 + 0.001 * b.center for b in boxes])])
+    prefix = oa_sq_prefix_distances(pts, boxes)
+    assert prefix.shape == (len(pts), 6)
+    for k in range(1, 7):  # bit-identical, not just close: the last column IS the plain metric
+        np.testing.assert_array_equal(prefix[:, k - 1], oa_sq_distances(pts, boxes[:k]))
+    d_sq, occ_sq = oa_sq_terms(pts, boxes)
+    for h in range(6):  # one cuboid: d_oa^2 = max(d^2, occlusion term)
+        np.testing.assert_array_equal(
+            np.maximum(d_sq[:, h], occ_sq[:, h]), oa_sq_distances(pts, boxes[h : h + 1])
+        )
+    subset = np.maximum(np.minimum(d_sq[:, 1], d_sq[:, 4]), np.maximum(occ_sq[:, 1], occ_sq[:, 4]))
+    np.testing.assert_array_equal(subset, oa_sq_distances(pts, [boxes[1], boxes[4]]))
+    assert (occ_sq > 0).mean() > 0.05 and (np.diff(prefix, axis=1) != 0).any()  # occlusion matters
+    assert oa_sq_prefix_distances(pts, []).shape == (len(pts), 0)
 
 
 def test_oa_distance_of_empty_set_is_infinite():
@@ -198,6 +219,85 @@ def test_aggregate_pools_auc_and_skips_undefined_means():
     assert agg["auc5cm_pct"] == pytest.approx(100 / 3, abs=0.01)
     summary = mean_std([agg, {**agg, "cuboids": 4 / 3}])
     assert summary["cuboids"] == pytest.approx((1.0, 1 / 3))
+
+
+# ---------------------------------------------------------------- parsimony curve
+
+
+def _room_frames():
+    """Two rendered views of a room with a table and a cabinet (80x60), cuboids in selection order; the
+    second view's fit misses the cabinet and a third fit is empty."""
+    cam = NYU.scaled(0.125)
+    room = Cuboid([0.0, -0.2, 2.5], [2.5, 1.5, 3.0], np.eye(3))
+    table = Cuboid([0.4, 0.8, 3.0], [0.5, 0.3, 0.4], rot_z(20.0))
+    cabinet = Cuboid([-1.2, 0.6, 3.8], [0.4, 0.6, 0.3], np.eye(3))
+    off = Cuboid([0.3, 0.0, 2.0], [0.2, 0.2, 0.2], np.eye(3))  # not in the data: hides part of the room
+    depth = render_depth(cam, [room, table, cabinet])
+    return cam, depth, [[table, off, room, cabinet], [room, table], []]
+
+
+def test_parsimony_curve_of_a_frame_ends_at_the_plain_values_and_starts_at_the_first_cuboid():
+    cam, depth, (fit, _, _) = _room_frames()
+    m = frame_metrics("a", depth, cam, fit, parsimony_k=6)
+    plain = frame_metrics("a", depth, cam, fit)
+    assert len(m.prefix_coverage) == 6 and all(len(v) == 6 for v in m.prefix_auc.values())
+    for cm in (20.0, 5.0):
+        assert m.prefix_auc[cm][-1].value == plain.auc[cm].value == m.auc[cm].value
+        assert m.prefix_auc[cm][3].value == plain.auc[cm].value  # k = 4 = |M|: all cuboids
+        for k in (1, 2, 3):  # each prefix is the set of its first k cuboids, evaluated alone
+            alone = frame_metrics("a", depth, cam, fit[:k])
+            assert m.prefix_auc[cm][k - 1].value == alone.auc[cm].value
+            assert m.prefix_coverage[k - 1] == alone.coverage
+    assert m.prefix_coverage[-1] == plain.coverage == m.coverage
+    assert m.oa_all_m == plain.oa_all_m and m.oa_covered_m == plain.oa_covered_m
+    assert np.all(np.diff(m.prefix_coverage) >= 0) and m.prefix_coverage[0] < m.prefix_coverage[-1]
+    auc20 = [s.value for s in m.prefix_auc[20.0]]
+    assert auc20[1] < auc20[2] < auc20[3]
+    # AUC need not grow with k: the occluder "off" hides part of the room, which then costs AUC
+    without_off = frame_metrics("a", depth, cam, [fit[0], fit[2]]).auc[20.0].value
+    assert auc20[2] < without_off - 0.01
+
+
+def test_pooled_parsimony_curve_equals_the_aggregate_of_each_prefix():
+    cam, depth, fits = _room_frames()
+    frames = [frame_metrics(f"f{i}", depth, cam, fit, parsimony_k=5) for i, fit in enumerate(fits)]
+    agg = aggregate(frames)
+    curve = agg["parsimony"]
+    assert curve["k"] == [1, 2, 3, 4, 5] and set(curve) == {"k", "auc20cm_pct", "auc5cm_pct", "coverage_pct"}
+    for k in range(1, 6):  # frames with fewer than k cuboids use all of theirs; the empty one stays empty
+        prefix = aggregate([frame_metrics(f"f{i}", depth, cam, fit[:k]) for i, fit in enumerate(fits)])
+        for key in ("auc20cm_pct", "auc5cm_pct", "coverage_pct"):
+            assert curve[key][k - 1] == pytest.approx(prefix[key], rel=1e-12, abs=1e-12)
+    for key in ("auc20cm_pct", "auc5cm_pct", "coverage_pct"):
+        assert curve[key][-1] == pytest.approx(agg[key], rel=1e-12)
+    assert np.all(np.diff(curve["coverage_pct"]) >= 0)
+    assert "parsimony" not in aggregate(frames, curves=False)
+    assert "parsimony" not in aggregate([frame_metrics("p", depth, cam, fits[0])])  # not requested
+    # over runs: element-wise mean and population std
+    other = {**agg, "parsimony": {**curve, "coverage_pct": [c + 2.0 for c in curve["coverage_pct"]]}}
+    mean, std = mean_std([agg, other])["parsimony"]
+    assert mean["k"] == curve["k"]
+    np.testing.assert_allclose(mean["coverage_pct"], np.array(curve["coverage_pct"]) + 1.0)
+    np.testing.assert_allclose(std["coverage_pct"], 1.0)
+    np.testing.assert_allclose(std["auc20cm_pct"], 0.0)
+
+
+def test_parsimony_curve_longer_than_max_cuboids_when_a_frame_has_more():
+    cam, depth, (fit, _, empty) = _room_frames()
+    m = frame_metrics("a", depth, cam, fit, parsimony_k=2)
+    assert len(m.prefix_coverage) == 4  # never cut short of the frame's own cuboids
+    e = frame_metrics("e", depth, cam, empty, parsimony_k=2)
+    assert e.prefix_coverage == [0.0, 0.0] and all(s.value == 0.0 for s in e.prefix_auc[20.0])
+    assert aggregate([m, e])["parsimony"]["k"] == [1, 2, 3, 4]
+    # a frame with fewer cuboids is extended with its full value when another frame sets a longer curve
+    two = frame_metrics("b", depth, cam, fit[:2], parsimony_k=2)
+    curve = aggregate([m, two])["parsimony"]
+    for k in range(1, 5):
+        prefix = aggregate(
+            [frame_metrics("a", depth, cam, fit[:k]), frame_metrics("b", depth, cam, fit[: min(k, 2)])]
+        )
+        assert curve["auc20cm_pct"][k - 1] == pytest.approx(prefix["auc20cm_pct"], rel=1e-12)
+        assert curve["coverage_pct"][k - 1] == pytest.approx(prefix["coverage_pct"], rel=1e-12)
 
 
 # ---------------------------------------------------------------- IoU and matching

@@ -41,7 +41,7 @@ def _config(
     config, auc_cm, applied = resolve(preset)
     overrides = {"seed": seed, "device": resolve_device(device)}
     if not any("sampler" in PRESETS[name].fit for name in applied):
-        overrides["sampler"] = "learned"  # the tool's default, as for cuboids fit
+        overrides["sampler"] = "sequential"  # the tool's default, as for cuboids fit
     if sampler is not None:
         if sampler not in ("uniform", "sequential", "learned"):
             fail(f"--sampler {sampler!r}: choose uniform, sequential or learned")
@@ -117,6 +117,42 @@ def gt_table(report) -> Table | None:
     return _table(report, f"ground-truth cuboids ({report.runs[0]['frames_with_gt']} frames), 3D IoU", cols)
 
 
+def objects_table(report) -> Table | None:
+    """Object recall and precision from the instance images (synthetic data), if any."""
+    if "object_recall_pct" not in report.runs[0]:
+        return None
+    cols = [
+        ("object_recall_pct", "object recall %", 1),
+        ("object_precision_pct", "object precision %", 1),
+        ("objects_eligible", "eligible objects", 0),
+    ]
+    n = report.runs[0]["frames_with_instances"]
+    return _table(report, f"objects of the instance images ({n} frame{'' if n == 1 else 's'})", cols)
+
+
+def parsimony_table(report) -> Table | None:
+    """The parsimony curve: AUC and coverage of the first k cuboids (selection order), mean ± std."""
+    from cuboidcli.evaluation.metrics import auc_key
+
+    if "parsimony" not in report.summary:
+        return None
+    mean, std = report.summary["parsimony"]
+    runs = len(report.runs)
+    keys = [(auc_key(cm), f"AUC@{cm:g} %") for cm in report.settings.auc_cm]
+    keys.append(("coverage_pct", "cover %"))
+    table = Table(title="parsimony: first k cuboids", title_justify="left")
+    table.add_column("k", justify="right")
+    for _, header in keys:
+        table.add_column(header, justify="right")
+    for i, k in enumerate(mean["k"]):
+        cells = []
+        for key, _ in keys:
+            m, sd = mean.get(key), std.get(key)
+            cells.append("-" if m is None else _fmt(m[i], sd[i], 1, runs))
+        table.add_row(str(k), *cells)
+    return table
+
+
 def _method_label(config, applied: list[str], fits: Path | None) -> str:
     if fits is not None:
         return f"saved fits ({fits.name})"
@@ -155,9 +191,13 @@ def evaluate(
         help="Baseline/variant: default, ours, ours-neural, seqransac-oai, seqransac, uniform, "
         "paper, outdoor; combine with commas (seqransac,outdoor).",
     ),
-    sampler: str = typer.Option(None, "--sampler", help="uniform | sequential | learned [default: learned]."),
+    sampler: str = typer.Option(
+        None, "--sampler", help="uniform | sequential | learned [default: sequential]."
+    ),
     solver: str = typer.Option(None, "--solver", help="numerical | neural (default: preset)."),
-    hypotheses: int = typer.Option(None, "--hypotheses", help="Hypotheses per step |H| (default: 4096)."),
+    hypotheses: int = typer.Option(
+        None, "--hypotheses", help="Hypotheses per step |H| (default: 3072; the paper: 4096)."
+    ),
     max_cuboids: int = typer.Option(None, "--max-cuboids", help="At most this many cuboids (default: 8)."),
     grid_step: int = typer.Option(
         None, "--grid-step", help="Fit on every n-th pixel (default: 8, i.e. 60x80 at 480x640)."
@@ -190,7 +230,11 @@ def evaluate(
     seed: int = typer.Option(0, "--seed", help="Seed of the first run."),
     device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
 ) -> None:
-    """Fit every frame and report the paper's metrics: time, |M|, coverage, OA-L2 distances, AUC."""
+    """Fit every frame and report the paper's metrics: time, |M|, coverage, OA-L2 distances, AUC.
+
+    Also the parsimony curve (AUC and coverage of the first k cuboids) and, where the dataset has
+    instance images, object recall and precision (docs/evaluate.md).
+    """
     from cuboidcli.evaluation.outputs import write_outputs
     from cuboidcli.evaluation.runner import EvalSettings, load_frames
     from cuboidcli.evaluation.runner import evaluate as run
@@ -263,8 +307,9 @@ def evaluate(
             report = run(frame_list, config, settings, progress=on_frame)
         label = _method_label(config, applied, fits) + (" from RGB" if rgb else "")
         out.print(results_table(report, label))
-        if (table := gt_table(report)) is not None:
-            out.print(table)
+        for table in (gt_table(report), objects_table(report), parsimony_table(report)):
+            if table is not None:
+                out.print(table)
         empty = sum(r.get("frames_without_cuboids", 0) for r in report.runs)
         if empty:
             console.print(

@@ -183,9 +183,11 @@ def fit(
     output: Path = typer.Option(
         None, "--output", "-o", help="Output JSON (or folder for a folder of depth maps)."
     ),
-    hypotheses: int = typer.Option(4096, "--hypotheses", help="Cuboid hypotheses per step |H|."),
+    hypotheses: int = typer.Option(
+        3072, "--hypotheses", help="Cuboid hypotheses per step |H| (the paper: 4096)."
+    ),
     max_cuboids: int = typer.Option(8, "--max-cuboids", help="At most this many cuboids."),
-    sampler: str = typer.Option("learned", "--sampler", help="learned | sequential | local | uniform."),
+    sampler: str = typer.Option("sequential", "--sampler", help="sequential | learned | local | uniform."),
     solver: str = typer.Option("numerical", "--solver", help="numerical | neural | onnx."),
     weights: Path = typer.Option(
         None, "--weights", help="Folder with network weights [default: shipped models/]."
@@ -415,9 +417,9 @@ def demo(
         preset=None,
         depth_scale=None,
         output=output / "sample_cuboids.json",
-        hypotheses=4096,
+        hypotheses=3072,
         max_cuboids=8,
-        sampler="learned",
+        sampler="sequential",
         solver="numerical",
         weights=None,
         onnx=None,

@@ -12,6 +12,22 @@ Aggregated over the frames of a run (as the paper): |M|, coverage and time are m
 is the mean of the per-frame means; OA "covered" the mean over frames with covered points; AUC is POOLED
 over all points of all frames, not averaged over frames.
 
+Two further measurements (computed by ``cuboids evaluate``; optional arguments of :func:`frame_metrics`):
+
+- **Parsimony curve**: AUC@X and coverage of the first k cuboids in selection order (the order of the
+  list), k = 1..K (K = ``config.max_cuboids``, or more if a frame has more cuboids). A frame with fewer than
+  k cuboids uses all of them. AUC is pooled over all points of all frames and coverage averaged over
+  frames, exactly like the plain values, which the curve reaches at k = K. The per-cuboid OA terms are
+  computed once per frame (:func:`.oa.oa_sq_prefix_distances`) and the coverage masks once per cuboid.
+- **Object recall / precision** where a per-pixel instance image exists (synthetic data): every valid
+  full-resolution point is assigned to a cuboid with the estimator's own rule
+  (:func:`cuboidcli.fitting.assign.assign_points`, the config's tau, beta, tau_c and OAI setting). A
+  ground-truth object (nonzero instance id: walls, floor, ceiling and clutter too) with at least 1 % of the
+  frame's valid points is *eligible*; it is *explained* by a cuboid that holds >= 50 % of the object's
+  valid points while >= 50 % of the cuboid's assigned points lie on the object. Recall = explained /
+  eligible objects; precision = cuboids that explain an eligible object / predicted cuboids; both pooled
+  over frames.
+
 Frames with no cuboid: every OA distance is infinite (there is no surface). Their points count in the
 pooled AUC with zero recall, and the frame is excluded from both OA means (reported instead as
 ``frames_without_cuboids``) so that a single empty frame does not make the mean infinite. The paper's
@@ -22,19 +38,26 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.coverage import coverage_mask
+from cuboidcli.evaluation.coverage import fill_convex, projected_hull
 from cuboidcli.evaluation.iou import greedy_matches, iou_matrix
-from cuboidcli.evaluation.oa import oa_distances
+from cuboidcli.evaluation.oa import oa_distances, oa_sq_prefix_distances
+from cuboidcli.fitting.config import FitConfig
 
 #: Default AUC upper bounds (cm): the paper's indoor values; outdoors it uses 50 and 10.
 AUC_CM = (20.0, 5.0)
 #: IoU thresholds of the ground-truth cuboid recall/precision.
 IOU_THRESHOLDS = (0.25, 0.5)
+#: An object is eligible for object recall with at least this percentage of the frame's valid points.
+OBJECT_MIN_PCT = 1
+#: A cuboid explains an object when it holds at least this percentage of the object's points and at least
+#: this percentage of the cuboid's assigned points lie on the object.
+OBJECT_EXPLAIN_PCT = 50
 
 
 def auc(distances_m: np.ndarray, threshold_m: float) -> float:
@@ -106,6 +129,61 @@ class AucStats:
         }
 
 
+class ObjectCounts(NamedTuple):
+    """Object recall / precision counts of one frame (pooled by summing)."""
+
+    explained: int
+    """Eligible objects explained by a cuboid."""
+    eligible: int
+    """Objects with >= OBJECT_MIN_PCT % of the frame's valid points."""
+    explaining: int
+    """Predicted cuboids that explain an eligible object."""
+    predicted: int
+    """Predicted cuboids."""
+
+
+def object_counts(labels: np.ndarray, instance_ids: np.ndarray, n_cuboids: int) -> ObjectCounts:
+    """Object recall / precision counts from a per-point assignment.
+
+    ``labels`` (N,) per valid point: the cuboid index (>= 0), -1 (none) or -2 (occluded), as
+    :func:`cuboidcli.fitting.assign.assign_points` returns; ``instance_ids`` (N,) the ground-truth object id
+    of each point (0 = no object). N (all valid points) is the base of the eligibility threshold.
+    """
+    labels = np.asarray(labels).ravel()
+    ids = np.asarray(instance_ids).ravel().astype(np.int64)
+    n = ids.size
+    if labels.size != n:
+        raise ValueError(f"{labels.size} labels for {n} instance ids")
+    if n == 0:
+        return ObjectCounts(0, 0, 0, n_cuboids)
+    present = np.flatnonzero(np.bincount(ids))  # object ids with points, ascending (0 first if present)
+    index = np.zeros(int(ids.max()) + 1, dtype=np.int64)
+    index[present] = np.arange(present.size)
+    obj = index[ids]  # (N,) dense object index
+    sizes = np.bincount(obj, minlength=present.size)
+    eligible = (present != 0) & (100 * sizes >= OBJECT_MIN_PCT * n)
+    n_eligible = int(eligible.sum())
+    if n_cuboids == 0 or n_eligible == 0:
+        return ObjectCounts(0, n_eligible, 0, n_cuboids)
+    on = labels >= 0
+    joint = np.bincount(
+        obj[on] * n_cuboids + labels[on].astype(np.int64), minlength=present.size * n_cuboids
+    ).reshape(present.size, n_cuboids)  # joint[o, h]: points of object o assigned to cuboid h
+    assigned = joint.sum(axis=0)  # points assigned to each cuboid (on any object or none)
+    explains = (
+        eligible[:, None]
+        & (joint > 0)
+        & (100 * joint >= OBJECT_EXPLAIN_PCT * sizes[:, None])
+        & (100 * joint >= OBJECT_EXPLAIN_PCT * assigned[None, :])
+    )
+    return ObjectCounts(
+        explained=int(explains.any(axis=1).sum()),
+        eligible=n_eligible,
+        explaining=int(explains.any(axis=0).sum()),
+        predicted=n_cuboids,
+    )
+
+
 @dataclass
 class FrameMetrics:
     """Metrics of one frame. Distances in metres, coverage as a fraction, time in seconds."""
@@ -122,6 +200,12 @@ class FrameMetrics:
     time_s: float | None = None
     gt_matches: dict[float, tuple[int, int, int]] | None = None
     """Keyed by IoU threshold: (matched, ground-truth cuboids, predicted cuboids); None without GT."""
+    objects: ObjectCounts | None = None
+    """Object recall / precision counts; None without an instance image."""
+    prefix_coverage: list[float] | None = None
+    """Parsimony curve: coverage (fraction) of the first k cuboids, k = 1..K; None when not computed."""
+    prefix_auc: dict[float, list[AucStats]] | None = None
+    """Parsimony curve: AUC statistics of the first k cuboids, k = 1..K, keyed by the threshold in cm."""
     extras: dict = field(default_factory=dict)
 
     def row(self) -> dict:
@@ -139,6 +223,9 @@ class FrameMetrics:
         for thr, (tp, n_gt, n_pred) in (self.gt_matches or {}).items():
             r[f"recall_iou{thr:g}_pct"] = 100.0 * tp / n_gt if n_gt else math.nan
             r[f"precision_iou{thr:g}_pct"] = 100.0 * tp / n_pred if n_pred else math.nan
+        if self.objects is not None:
+            r.update(object_rates(*self.objects))
+            r["objects_eligible"] = self.objects.eligible
         r["points"] = self.n_points
         r["covered_points"] = self.n_covered_points
         r.update(self.extras)
@@ -147,6 +234,14 @@ class FrameMetrics:
 
 def auc_key(threshold_cm: float) -> str:
     return f"auc{threshold_cm:g}cm_pct"
+
+
+def object_rates(explained: int, eligible: int, explaining: int, predicted: int) -> dict:
+    """Object recall and precision in % (NaN with a zero denominator)."""
+    return {
+        "object_recall_pct": 100.0 * explained / eligible if eligible else math.nan,
+        "object_precision_pct": 100.0 * explaining / predicted if predicted else math.nan,
+    }
 
 
 def gt_match_counts(pred: list[Cuboid], gt: list[Cuboid], thresholds=IOU_THRESHOLDS) -> dict:
@@ -163,16 +258,36 @@ def frame_metrics(
     auc_cm=AUC_CM,
     gt: list[Cuboid] | None = None,
     time_s: float | None = None,
+    parsimony_k: int | None = None,
+    instances: np.ndarray | None = None,
+    config: FitConfig | None = None,
 ) -> FrameMetrics:
-    """All metrics of one frame: depth_m (H, W) metres (0 = missing), the frame's camera and cuboids."""
+    """All metrics of one frame: depth_m (H, W) metres (0 = missing), the frame's camera and cuboids.
+
+    ``parsimony_k``: also compute the parsimony curve for k = 1..max(parsimony_k, len(cuboids)).
+    ``instances`` (H, W) integer object ids (0 = none): also count object recall / precision, with the
+    point-to-cuboid assignment of ``config`` (tau, beta, tau_c, occlusion_aware; default FitConfig()).
+    """
     valid = valid_depth(depth_m)
     points = camera.backproject(np.where(valid, depth_m, 0.0))[valid]  # (N, 3)
-    dist = oa_distances(points, cuboids)  # (N,), inf without cuboids
-    covered = coverage_mask(camera, cuboids)
+    prefix_dist = None
+    if parsimony_k is not None and cuboids:
+        prefix_dist = oa_sq_prefix_distances(points, cuboids)  # (N, M) m^2, column k: first k + 1 cuboids
+        np.sqrt(prefix_dist, out=prefix_dist)
+        dist = prefix_dist[:, -1]  # equal to oa_distances(points, cuboids)
+    else:
+        dist = oa_distances(points, cuboids)  # (N,), inf without cuboids
+    masks = [fill_convex(projected_hull(c, camera), camera.width, camera.height) for c in cuboids]
+    covered = np.zeros((camera.height, camera.width), dtype=bool)
+    prefix_cov = []
+    for mask in masks:  # cumulative union, in selection order
+        covered |= mask
+        prefix_cov.append(float(covered.mean()))
     cov_pts = covered[valid]
     n_cov = int(cov_pts.sum())
     finite = bool(cuboids) and dist.size > 0
-    return FrameMetrics(
+    auc_stats = {float(cm): AucStats.of(dist, cm / 100.0) for cm in auc_cm}
+    m = FrameMetrics(
         name=name,
         cuboids=len(cuboids),
         coverage=float(covered.mean()),
@@ -180,10 +295,30 @@ def frame_metrics(
         oa_covered_m=float(dist[cov_pts].mean()) if finite and n_cov else math.nan,
         n_points=int(dist.size),
         n_covered_points=n_cov,
-        auc={float(cm): AucStats.of(dist, cm / 100.0) for cm in auc_cm},
+        auc=auc_stats,
         time_s=time_s,
         gt_matches=None if gt is None else gt_match_counts(cuboids, gt),
     )
+    if parsimony_k is not None:
+        k_max = max(int(parsimony_k), len(cuboids), 1)
+        pad = k_max - max(len(cuboids), 1)  # k beyond the frame's cuboids: all of them, i.e. the plain value
+        m.prefix_coverage = (prefix_cov or [0.0]) + [m.coverage] * pad
+        m.prefix_auc = {}
+        for cm, full in auc_stats.items():
+            curve = [AucStats.of(prefix_dist[:, k], cm / 100.0) for k in range(len(cuboids) - 1)]
+            m.prefix_auc[cm] = curve + [full] * (pad + 1)
+    if instances is not None:
+        if instances.shape != depth_m.shape:
+            raise ValueError(
+                f"instance image is {instances.shape[1]}x{instances.shape[0]} but the depth map is "
+                f"{depth_m.shape[1]}x{depth_m.shape[0]}"
+            )
+        from cuboidcli.fitting.assign import assign_points
+
+        cfg = config or FitConfig()
+        labels = assign_points(points, cuboids, cfg.tau_sq_m2, cfg.beta, cfg.tau_c, cfg.occlusion_aware)
+        m.objects = object_counts(labels, instances[valid], len(cuboids))
+    return m
 
 
 def _nanmean(values) -> float:
@@ -192,8 +327,40 @@ def _nanmean(values) -> float:
     return float(v.mean()) if v.size else math.nan
 
 
-def aggregate(frames: list[FrameMetrics]) -> dict:
-    """Aggregates of one run in reporting units, keys in the paper's column order (see module docstring)."""
+def _padded(curve: list, k_max: int) -> list:
+    """A frame's curve extended to k_max with its last value (all of the frame's cuboids)."""
+    return list(curve) + [curve[-1]] * (k_max - len(curve))
+
+
+def parsimony_curve(frames: list[FrameMetrics]) -> dict | None:
+    """Pooled parsimony curve of a run: {"k", auc keys, "coverage_pct"} as lists in reporting units.
+
+    AUC pooled over all points of all frames per k; coverage the mean over frames per k. None unless every
+    frame has its curve.
+    """
+    if not frames or any(f.prefix_coverage is None or f.prefix_auc is None for f in frames):
+        return None
+    k_max = max(len(f.prefix_coverage) for f in frames)
+    out: dict = {"k": list(range(1, k_max + 1))}
+    for cm in frames[0].prefix_auc:
+        curves = [_padded(f.prefix_auc[cm], k_max) for f in frames]
+        pooled = []
+        for k in range(k_max):
+            stats = curves[0][k]
+            for c in curves[1:]:
+                stats = stats.merge(c[k])
+            pooled.append(100.0 * stats.value)
+        out[auc_key(cm)] = pooled
+    cov = np.array([_padded(f.prefix_coverage, k_max) for f in frames], dtype=np.float64)
+    out["coverage_pct"] = (100.0 * cov.mean(axis=0)).tolist()
+    return out
+
+
+def aggregate(frames: list[FrameMetrics], curves: bool = True) -> dict:
+    """Aggregates of one run in reporting units, keys in the paper's column order (see module docstring).
+
+    ``curves``: include the parsimony curve (key "parsimony") when the frames have it.
+    """
     if not frames:
         return {"frames": 0}
     out = {
@@ -216,16 +383,46 @@ def aggregate(frames: list[FrameMetrics]) -> dict:
             n_pred = sum(f.gt_matches[thr][2] for f in with_gt)
             out[f"recall_iou{thr:g}_pct"] = 100.0 * tp / n_gt if n_gt else math.nan
             out[f"precision_iou{thr:g}_pct"] = 100.0 * tp / n_pred if n_pred else math.nan
+    with_objects = [f for f in frames if f.objects is not None]
+    if with_objects:
+        totals = [sum(f.objects[i] for f in with_objects) for i in range(4)]
+        out.update(object_rates(*totals))
+        out["objects_eligible"] = totals[1]
     out["frames"] = len(frames)
     out["frames_without_cuboids"] = sum(1 for f in frames if f.cuboids == 0)
     out["frames_with_gt"] = len(with_gt)
+    if with_objects:
+        out["frames_with_instances"] = len(with_objects)
+    if curves and (curve := parsimony_curve(frames)) is not None:
+        out["parsimony"] = curve
     return out
 
 
-def mean_std(runs: list[dict]) -> dict[str, tuple[float, float]]:
-    """Mean and population std (ddof 0) of each aggregate over runs, like the paper's tables."""
-    out = {}
+def _mean_std_curves(curves: list[dict]) -> tuple[dict, dict]:
+    """Element-wise mean and population std over runs of parsimony curves (shorter ones padded)."""
+    k_max = max(len(c["k"]) for c in curves)
+    mean: dict = {"k": list(range(1, k_max + 1))}
+    std: dict = {"k": list(range(1, k_max + 1))}
+    for key in curves[0]:
+        if key == "k":
+            continue
+        vals = np.array([_padded(c[key], k_max) for c in curves], dtype=np.float64)
+        with np.errstate(invalid="ignore"):
+            mean[key], std[key] = vals.mean(axis=0).tolist(), vals.std(axis=0).tolist()
+    return mean, std
+
+
+def mean_std(runs: list[dict]) -> dict[str, tuple]:
+    """Mean and population std (ddof 0) of each aggregate over runs, like the paper's tables.
+
+    The parsimony curve ("parsimony") gives a pair of dicts of lists: (mean per k, std per k).
+    """
+    out: dict = {}
     for key in runs[0]:
+        if key == "parsimony":
+            curves = [r["parsimony"] for r in runs if "parsimony" in r]
+            out[key] = _mean_std_curves(curves)
+            continue
         vals = np.array([r.get(key, math.nan) for r in runs], dtype=np.float64)
         fin = vals[np.isfinite(vals)]
         out[key] = (float(fin.mean()), float(fin.std())) if fin.size else (math.nan, math.nan)

@@ -36,6 +36,22 @@ class EvalFrame(Protocol):
 
     def gt_cuboids(self) -> list[Cuboid] | None: ...
 
+    # optional: ``instances() -> np.ndarray | None``, per-pixel object ids (H, W), 0 = no object
+
+
+def _instances(frame: EvalFrame) -> np.ndarray | None:
+    """The frame's instance image if it has one (synthetic data), checked against its camera."""
+    read = getattr(frame, "instances", None)
+    if not callable(read):
+        return None
+    inst = read()
+    if inst is not None and inst.shape != (frame.camera.height, frame.camera.width):
+        raise InputError(
+            f"frame {frame.name}: instance image is {inst.shape[1]}x{inst.shape[0]} but its camera "
+            f"is {frame.camera.width}x{frame.camera.height}"
+        )
+    return inst
+
 
 @dataclass(frozen=True)
 class EvalSettings:
@@ -234,6 +250,9 @@ def evaluate_frame(
 ) -> FrameMetrics:
     """Fit (or load from ``fits_dir``) the cuboids of one frame and compute its metrics.
 
+    Besides the paper's metrics: the parsimony curve up to ``config.max_cuboids`` and, where the frame has
+    an instance image, object recall / precision with ``config``'s point-to-cuboid assignment (for saved
+    fits, the settings recorded in the file take precedence: :func:`_scoring_config`).
     Time is the estimator's ``timing_s["total"]`` (input loaded -> cuboids selected; metrics excluded),
     or the saved file's when evaluating saved fits. With ``rgb`` the cuboids are fitted to the depth
     estimated from the image and scored against the frame's true depth.
@@ -251,6 +270,7 @@ def evaluate_frame(
         except (FileNotFoundError, ValueError, KeyError) as e:
             raise InputError(f"frame {frame.name}: cannot read saved fit {path}: {e}") from e
         cuboids, timing = saved.cuboids, saved.timing_s
+        config = _scoring_config(config, saved.settings if isinstance(saved.settings, dict) else {})
     else:
         cuboids, timing = _fit_and_save(frame, depth, config, weights_dir, save_fits_dir, rgb, depth_model)
     total = timing.get("total")
@@ -262,7 +282,33 @@ def evaluate_frame(
         auc_cm=tuple(auc_cm),
         gt=frame.gt_cuboids(),
         time_s=None if total is None else float(total),
+        parsimony_k=config.max_cuboids,
+        instances=_instances(frame),
+        config=config,
     )
+
+
+#: Settings of a saved fit that its scoring uses (parsimony length and the point-to-cuboid assignment).
+_SCORING_SETTINGS = ("max_cuboids", "tau_sq_m2", "beta", "tau_c_sq_m2", "occlusion_aware")
+
+
+def _scoring_config(config: FitConfig, saved_settings: dict) -> FitConfig:
+    """``config`` with the scoring settings of a saved fit where its file records them (files written by
+    ``cuboids fit`` / ``evaluate --save-fits`` do), so that re-scoring saved fits gives the same numbers."""
+    over: dict = {}
+    for key in _SCORING_SETTINGS:
+        if key not in saved_settings:
+            continue
+        value = saved_settings[key]
+        if key == "max_cuboids" and isinstance(value, int) and not isinstance(value, bool) and value >= 1:
+            over[key] = value
+        elif key == "occlusion_aware" and isinstance(value, bool):
+            over[key] = value
+        elif key in ("tau_sq_m2", "beta") and isinstance(value, int | float) and value > 0:
+            over[key] = float(value)
+        elif key == "tau_c_sq_m2" and (value is None or (isinstance(value, int | float) and value > 0)):
+            over[key] = None if value is None else float(value)
+    return replace(config, **over) if over else config
 
 
 def _worker_init() -> None:
@@ -321,7 +367,7 @@ def evaluate(
             def on_done(i: int, m: FrameMetrics, n_done: int, r=r, results=results) -> None:
                 results[i] = m
                 if progress is not None:
-                    running = aggregate(list(results.values()))
+                    running = aggregate(list(results.values()), curves=False)
                     progress(ProgressEvent(r, len(seeds), n_done, len(frames), m.name, running))
 
             _run_frames(frames, args, pool, on_done)

@@ -27,7 +27,7 @@ import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.io.atomic import atomic_write_json
-from cuboidcli.io.depth import InputError, read_depth, read_rgb
+from cuboidcli.io.depth import InputError, _imread_unchanged, read_depth, read_rgb
 
 DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
 RGB_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -50,6 +50,18 @@ class Frame:
 
     def rgb(self) -> np.ndarray | None:
         return None if self.rgb_path is None else read_rgb(self.rgb_path)
+
+    def instances(self) -> np.ndarray | None:
+        """Per-pixel object ids (H, W) int32 (0 = no object) from instances/<name>.png, or None."""
+        if self.instances_path is None:
+            return None
+        img = _imread_unchanged(self.instances_path)
+        if img.ndim != 2 or not np.issubdtype(img.dtype, np.integer):
+            raise InputError(
+                f"{self.instances_path}: an instance image is one channel of integer object ids "
+                f"(uint16 PNG), got shape {img.shape} {img.dtype}"
+            )
+        return img.astype(np.int32)
 
     def gt_cuboids(self):
         from cuboidcli.io.result import read_result
