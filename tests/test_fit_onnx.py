@@ -34,6 +34,7 @@ def test_fit_with_onnx_solver_matches_neural(tmp_path, room_png):
         "-1e9",
         "--max-cuboids",
         "3",
+        "--no-refine",  # refinement and growing amplify float32 differences of the two runtimes
         "-q",
     ]
     r1 = runner.invoke(
