@@ -19,7 +19,13 @@ from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import OCCLUDED
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.sampling import Sampler, SamplingContext, draw_hypotheses, make_sampler
+from cuboidcli.fitting.sampling import (
+    Sampler,
+    SamplingContext,
+    draw_hypotheses,
+    local_fraction_of,
+    make_sampler,
+)
 from cuboidcli.fitting.scoring import ScoreParams, select_best, values_torch
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.solvers.base import CuboidSolver, SizeBounds
@@ -177,9 +183,14 @@ def fit_points(
             break
         info.iterations += 1
         ctx = SamplingContext(
-            pts, prep.grid_index, prep.grid_shape, prep.depth_grid, state.float(), len(cuboids)
+            pts,
+            prep.grid_index,
+            prep.grid_shape,
+            prep.depth_grid,
+            state.float(),
+            len(cuboids),
+            prep.focal_cells,
         )
-        ctx.focal_cells = prep.focal_cells
         if not gain_upper_bound(state) > info.theta:  # no hypothesis can gain Theta: stop without drawing
             info.stop_reason = "gain_below_theta"
             info.rejected_gain = None
@@ -195,7 +206,7 @@ def fit_points(
             info.rejected_gain = gain
             break
         c_b, a_b, R_b = best_hyp
-        values = _values_one(pts, c_b, a_b, R_b, sp)
+        values = values_one(pts, c_b, a_b, R_b, sp)
         if config.refine:
             c_b, a_b, R_b, values, gain = _refine(pts, c_b, a_b, R_b, values, state, gain, sp, config, gen)
             t5 = time.perf_counter()
@@ -218,7 +229,7 @@ def _search_step(ctx, sampler, solver, state, sp: ScoreParams, config: FitConfig
     best gains Theta, the miss probability falls below 1 - confidence, or ``config.max_batches`` is
     reached. Returns (gain, (centers, half_sizes, rotations) of the best as (1, ...) tensors, batches)."""
     pts = ctx.points
-    local_frac = float(getattr(sampler, "local_fraction", config.local_fraction))
+    local_frac = local_fraction_of(sampler, config.local_fraction)
     gain, best, batches = -np.inf, None, 0
     t = time.perf_counter()
     with torch.no_grad():
@@ -328,11 +339,7 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
                 grow = new_half - float(a[0, k])
                 if grow <= 1e-6:
                     break
-                c2 = c + (sgn * grow * axes[:, k]).to(c.dtype)[None]
-                a2 = a.clone()
-                a2[0, k] = new_half
-                v2 = _values_one(pts, c2, a2, R, sp)
-                g2 = float((combine(v2, state) - state).sum())
+                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, grow, state, sp)
                 if g2 > gain + 1e-6:
                     c, a, values, gain, grew = c2, a2, v2, g2, True
                     break
@@ -343,28 +350,37 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
         if not moved:
             break
     if values is None:
-        return c, a, _values_one(pts, c, a, R, sp), gain
+        return c, a, values_one(pts, c, a, R, sp), gain
     # big steps may overshoot into space without points: pull each face back while no gain is lost
     floor = gain - 1e-3 * abs(gain)
     for k, sgn in faces:
         for step in (0.8, 0.4, 0.2, config.grow_step_m):
             while float(a[0, k]) - 0.5 * step >= config.a_min:
-                c2 = c - (sgn * 0.5 * step * axes[:, k]).to(c.dtype)[None]
-                a2 = a.clone()
-                a2[0, k] -= 0.5 * step
-                v2 = _values_one(pts, c2, a2, R, sp)
-                g2 = float((combine(v2, state) - state).sum())
+                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp)
                 if g2 < floor:
                     break
                 c, a, values, gain = c2, a2, v2, g2
     return c, a, values, gain
 
 
-def _refine_once(
-    pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator, force=False
-):
-    """Refine a cuboid on the points it newly explains; keep the result only if the gain holds (or, with
-    ``force``, always: the caller compares)."""
+def _move_face(pts, c, a, R, axes, k: int, side: float, delta: float, state, sp: ScoreParams):
+    """The box with the half-size along axis k changed by ``delta`` (m) and the centre shifted so that only
+    the face on ``side`` (+1 / -1) moves, by 2 * delta; the opposite face stays. Returns (center, half,
+    values, gain) of the moved box."""
+    c2 = c + (side * delta * axes[:, k]).to(c.dtype)[None]
+    a2 = a.clone()
+    a2[0, k] += delta
+    v2 = values_one(pts, c2, a2, R, sp)
+    return c2, a2, v2, gain_of(v2, state)
+
+
+def gain_of(values: torch.Tensor, state: torch.Tensor) -> float:
+    """Inlier-count gain of one cuboid with per-point values f_OAI ``values`` over the current ``state``."""
+    return float((combine(values, state) - state).sum())
+
+
+def _refine_once(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator):
+    """Refine a cuboid on the points it newly explains; keep the result only if the gain holds."""
     from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
 
     inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)
@@ -380,14 +396,14 @@ def _refine_once(
     else:
         c2, a2, R2 = refine_cuboid(pts[inl], c[0], a[0], R[0], config.a_min, config.a_max)
     c2, a2, R2 = c2[None].to(c.dtype), a2[None].to(a.dtype), R2[None].to(R.dtype)
-    v2 = _values_one(pts, c2, a2, R2, sp)
-    g2 = float((combine(v2, state) - state).sum())
+    v2 = values_one(pts, c2, a2, R2, sp)
+    g2 = gain_of(v2, state)
     if g2 >= gain - 0.005 * abs(gain):
         return c2, a2, R2, v2, g2
     return c, a, R, values, gain
 
 
-def _values_one(pts, c, a, R, sp: ScoreParams) -> torch.Tensor:
+def values_one(pts, c, a, R, sp: ScoreParams) -> torch.Tensor:
     """f_OAI of one cuboid at every point (N,), float64."""
     if pts.device.type == "cpu":
         from cuboidcli.fitting.fused import cuboid_values

@@ -106,6 +106,12 @@ def draw_minimal_sets(
     return draw_sets_and_maps(p, q, hypotheses, min_set, generator)[1]
 
 
+def local_fraction_of(sampler: Sampler, configured: float) -> float:
+    """The share of localised minimal sets a sampler uses: its own ``local_fraction`` if it fixes one (the
+    local sampler: 1), else the configured one."""
+    return float(getattr(sampler, "local_fraction", configured))
+
+
 def draw_hypotheses(
     sampler: Sampler,
     ctx: SamplingContext,
@@ -121,7 +127,7 @@ def draw_hypotheses(
     maps, the paper's sets). Returns (maps (H,), indices (H, C), local (H,) bool), all on the CPU."""
     from cuboidcli.fitting.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
 
-    frac = float(getattr(sampler, "local_fraction", local_fraction))
+    frac = local_fraction_of(sampler, local_fraction)
     n_local = min(max(round(frac * hypotheses), 0), hypotheses)
     p, q = dists if dists is not None else sampler.distributions(ctx)
     maps = torch.empty(hypotheses, dtype=torch.long)

@@ -29,9 +29,8 @@ import numpy as np
 import torch
 
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import PreparedPoints, _values_one
-from cuboidcli.fitting.proposals import ball_minimal_sets, neighbour_weights
-from cuboidcli.fitting.sampling import SamplingContext, SequentialSampler, draw_minimal_sets
+from cuboidcli.fitting.pipeline import PreparedPoints, values_one
+from cuboidcli.fitting.sampling import SamplingContext, SequentialSampler, draw_hypotheses
 from cuboidcli.fitting.scoring import ScoreParams, gains_cpu
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.atomic import atomic_torch_save
@@ -83,20 +82,11 @@ def scene_records(
     seq = SequentialSampler()
     P = pts.double().numpy()
     for _ in range(cfg.steps):
-        ctx = SamplingContext(pts, prep.grid_index, prep.grid_shape, prep.depth_grid, state.float(), 0)
-        p, q = seq.distributions(ctx)
-        seeds = draw_minimal_sets(p, q, cfg.hypotheses, 1, gen)[:, 0]
-        idx = ball_minimal_sets(
-            pts,
-            prep.grid_index,
-            prep.grid_shape,
-            seeds,
-            fit.min_set,
-            gen,
-            fit.local_radii_m,
-            neighbour_weights(state),
-            prep.focal_cells,
+        ctx = SamplingContext(
+            pts, prep.grid_index, prep.grid_shape, prep.depth_grid, state, 0, prep.focal_cells
         )
+        _, idx, _ = draw_hypotheses(seq, ctx, cfg.hypotheses, fit.min_set, gen, 1.0, fit.local_radii_m)
+        seeds = idx[:, 0]
         c, a, R = solver(pts[idx])
         g = gains_cpu(P, c.double().numpy(), a.double().numpy(), R.double().numpy(), state.numpy(), sp)
         best = int(np.argmax(g))
@@ -107,7 +97,7 @@ def scene_records(
         uniq = torch.isfinite(per_seed).nonzero().squeeze(1)
         score = (per_seed[uniq] / g[best]).clamp(0.0, 1.0).float()
         out.append(SeedRecord(scene, state.float().clone(), uniq, score))
-        values = _values_one(pts, c[best : best + 1], a[best : best + 1], R[best : best + 1], sp)
+        values = values_one(pts, c[best : best + 1], a[best : best + 1], R[best : best + 1], sp)
         state = combine(values, state)
     return out
 
