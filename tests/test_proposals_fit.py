@@ -15,13 +15,13 @@ from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import (
     fit_depth,
     gain_upper_bound,
-    grow_cuboid,
     make_solver,
     miss_probability,
     prepare_points,
 )
 from cuboidcli.fitting.sampling import SequentialSampler
 from cuboidcli.fitting.scoring import ScoreParams, gains_torch, values_torch
+from cuboidcli.fitting.winner import grow_cuboid
 from cuboidcli.io.depth import read_depth
 from cuboidcli.synth import render_boxes
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -63,6 +64,8 @@ class FitJob:
             sampler=self.sampler,
             progress=progress,
         )
+        for note in info.warnings:
+            console.print(f"[yellow]warning:[/] {note}", highlight=False)
         if frame.depth_seconds is not None:
             info.add_depth_time(frame.depth_seconds)
         extra = {"weights": _str_or_none(self.weights), "onnx": _str_or_none(self.onnx)}
@@ -111,14 +114,22 @@ def _config(
     refine=True,
     local_fraction=None,
     max_batches=None,
+    align=None,
+    gravity=None,
+    slab_max=None,
 ):
-    from cuboidcli.fitting.config import FitConfig
+    from cuboidcli.fitting.config import ALIGN_MODES, FitConfig
 
     defaults = FitConfig()
     if local_fraction is not None and not 0.0 <= local_fraction <= 1.0:
         fail(f"--local-fraction must be between 0 and 1 (got {local_fraction})")
     if max_batches is not None and max_batches < 1:
         fail(f"--max-batches must be at least 1 (got {max_batches})")
+    if align is not None and align not in ALIGN_MODES:
+        fail(f"--align {align!r}: choose {', '.join(ALIGN_MODES)}")
+    gravity_down = None if gravity is None else parse_gravity(gravity)
+    if slab_max is not None and slab_max <= 0:
+        fail(f"--slab-max must be positive metres (got {slab_max})")
     if hypotheses < 1:
         fail(f"--hypotheses must be at least 1 (got {hypotheses})")
     if max_cuboids < 1:
@@ -143,7 +154,28 @@ def _config(
         refine=refine,
         local_fraction=defaults.local_fraction if local_fraction is None else local_fraction,
         max_batches=defaults.max_batches if max_batches is None else max_batches,
+        align=defaults.align if align is None else align,
+        gravity_down=gravity_down,
+        slab_max_m=defaults.slab_max_m if slab_max is None else slab_max,
     )
+
+
+def parse_gravity(text: str) -> tuple[float, float, float]:
+    """``--gravity gx,gy,gz`` (the down direction in camera coordinates; any length) or a sensor
+    convention: ``y-down`` (a level OpenCV camera: 0,1,0)."""
+    conventions = {"y-down": (0.0, 1.0, 0.0), "level": (0.0, 1.0, 0.0)}
+    if text.strip().lower() in conventions:
+        return conventions[text.strip().lower()]
+    try:
+        v = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        v = ()
+    if len(v) != 3 or not all(math.isfinite(x) for x in v) or not any(v):
+        fail(
+            f"--gravity {text!r}: give the down direction in camera coordinates as gx,gy,gz "
+            "(e.g. 0,1,0 for a level camera; from an IMU or ARKit) or 'level'"
+        )
+    return v
 
 
 def cuboid_table(result) -> Table:
@@ -217,6 +249,23 @@ def fit(
         "--max-batches",
         help="Most batches of hypotheses per step when the best misses Theta [default: 4]; 1 = the paper.",
     ),
+    align: str = typer.Option(
+        None,
+        "--align",
+        help="free (any rotation) | gravity (upright boxes, free yaw) | manhattan (the room's axes) "
+        "[default: free]. Gravity is estimated from the depth map unless --gravity is given.",
+    ),
+    gravity: str = typer.Option(
+        None,
+        "--gravity",
+        help="Down direction in camera coordinates, gx,gy,gz (an IMU, ARKit), or 'level' (0,1,0). "
+        "Also levels the GLB.",
+    ),
+    slab_max: float = typer.Option(
+        None,
+        "--slab-max",
+        help="Largest half-length of a wall or floor slab, m [default: 4]; a_max (2) for other boxes.",
+    ),
     glb: bool = typer.Option(False, "--glb", help="Also write <out>.glb."),
     ply: bool = typer.Option(False, "--ply", help="Also write <out>_points.ply and <out>_cuboids.ply."),
     overlay: bool = typer.Option(False, "--overlay", help="Also write overlay, label and panel PNGs."),
@@ -258,6 +307,9 @@ def fit(
         refine,
         local_fraction,
         max_batches,
+        align,
+        gravity,
+        slab_max,
     )
     if solver == "onnx" and onnx is None:
         fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
@@ -432,6 +484,9 @@ def demo(
         refine=True,
         local_fraction=None,
         max_batches=None,
+        align=None,
+        gravity=None,
+        slab_max=None,
         glb=True,
         ply=True,
         overlay=True,

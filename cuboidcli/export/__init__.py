@@ -108,6 +108,7 @@ def write_result_glb(
     labelled: tuple | None = None,
 ) -> Path:
     """GLB of the result's cuboids, with the input camera; with ``with_points`` also the depth map's points.
+    A result with gravity gives a levelled scene (floor horizontal, +Y up).
 
     Points are coloured from ``rgb`` (H, W, 3) uint8 if given, else by their assigned cuboid. ``labelled``
     optionally passes (points, pixel indices, labels) already computed from the same depth map and step.
@@ -126,8 +127,25 @@ def write_result_glb(
             colors = label_colors(labels)
     meta = {"schema": "cuboids/1", "camera": result.camera.to_dict(), "n_cuboids": len(result.cuboids)}
     return write_glb(
-        path, result.cuboids, camera=result.camera, points=points, point_colors=colors, metadata=meta
+        path,
+        result.cuboids,
+        camera=result.camera,
+        points=points,
+        point_colors=colors,
+        metadata=meta,
+        up=result_up(result),
     )
+
+
+def result_up(result: FitResult) -> np.ndarray | None:
+    """The up direction (3,) in camera coordinates of a result with a "gravity" entry, else None."""
+    down = (result.extras.get("gravity") or {}).get("down")
+    if down is None:
+        return None
+    v = -np.asarray(down, dtype=np.float64)
+    if v.shape != (3,) or not np.all(np.isfinite(v)) or np.linalg.norm(v) < 1e-9:
+        raise ValueError("the result's gravity.down must be three finite numbers, not all zero")
+    return v / np.linalg.norm(v)
 
 
 def write_result_ply(

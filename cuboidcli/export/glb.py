@@ -30,16 +30,37 @@ def node_name(index: int) -> str:
     return f"cuboid_{index:02d}"
 
 
-def gltf_points(points: np.ndarray) -> np.ndarray:
-    """Points (..., 3) in OpenCV camera coordinates -> the same points in glTF coordinates (metres)."""
-    return np.asarray(points, dtype=np.float64) @ OPENCV_TO_GLTF.T
+def level_rotation(up: np.ndarray | None) -> np.ndarray:
+    """(3, 3) OpenCV camera frame -> glTF frame. Without ``up`` it is F; with the up direction ``up`` (3,)
+    in camera coordinates (from gravity), F followed by the smallest rotation that turns F up onto glTF's
+    +Y, so the floor is horizontal in viewers and the camera keeps its heading."""
+    if up is None:
+        return OPENCV_TO_GLTF.copy()
+    u = OPENCV_TO_GLTF @ (np.asarray(up, dtype=np.float64) / np.linalg.norm(up))
+    y = np.array([0.0, 1.0, 0.0])
+    v, c = np.cross(u, y), float(u @ y)
+    s = float(np.linalg.norm(v))
+    if s < 1e-12:
+        turn = np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
+    else:
+        k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]]) / s
+        turn = np.eye(3) + s * k + (1 - c) * k @ k
+    return turn @ OPENCV_TO_GLTF
 
 
-def node_matrix(cuboid: Cuboid) -> np.ndarray:
-    """(4, 4) glTF node transform of a cuboid: rotation ``F R`` (det +1), translation ``F c``."""
+def gltf_points(points: np.ndarray, up: np.ndarray | None = None) -> np.ndarray:
+    """Points (..., 3) in OpenCV camera coordinates -> the same points in glTF coordinates (metres),
+    levelled when ``up`` is given (:func:`level_rotation`)."""
+    return np.asarray(points, dtype=np.float64) @ level_rotation(up).T
+
+
+def node_matrix(cuboid: Cuboid, up: np.ndarray | None = None) -> np.ndarray:
+    """(4, 4) glTF node transform of a cuboid: rotation ``L R`` (det +1), translation ``L c`` with L the
+    camera -> glTF rotation (F, or F levelled for ``up``: :func:`level_rotation`)."""
+    lev = level_rotation(up)
     m = np.eye(4)
-    m[:3, :3] = OPENCV_TO_GLTF @ cuboid.rotation
-    m[:3, 3] = OPENCV_TO_GLTF @ cuboid.center
+    m[:3, :3] = lev @ cuboid.rotation
+    m[:3, 3] = lev @ cuboid.center
     return m
 
 
@@ -63,11 +84,13 @@ def build_scene(
     point_colors: np.ndarray | None = None,
     alpha: float = 1.0,
     metadata: dict | None = None,
+    up: np.ndarray | None = None,
 ):
     """A trimesh Scene with nodes ``cuboid_00``... and, if ``points`` (N, 3) m is given, a ``points`` node.
 
     ``points`` are in OpenCV camera coordinates; ``point_colors`` (N, 3) uint8 RGB (grey if None).
-    ``alpha`` in (0, 1] is the boxes' opacity (glTF BLEND mode below 1).
+    ``alpha`` in (0, 1] is the boxes' opacity (glTF BLEND mode below 1). With ``up`` (3,), the up
+    direction in camera coordinates, the scene is levelled (floor horizontal, glTF +Y up).
     """
     import trimesh
     from trimesh.visual.material import PBRMaterial
@@ -95,7 +118,7 @@ def build_scene(
             mesh,
             node_name=node_name(k),
             geom_name=node_name(k),
-            transform=node_matrix(cub),
+            transform=node_matrix(cub, up),
             metadata=node_extras(cub, k),
         )
     if points is not None and len(points) > 0:
@@ -109,7 +132,7 @@ def build_scene(
             ],
             axis=1,
         )
-        cloud = trimesh.PointCloud(gltf_points(pts).astype(np.float32), colors=rgba)
+        cloud = trimesh.PointCloud(gltf_points(pts, up).astype(np.float32), colors=rgba)
         scene.add_geometry(
             cloud,
             node_name="points",
@@ -119,8 +142,9 @@ def build_scene(
     return scene
 
 
-def _add_camera(tree: dict, camera: Camera) -> None:
-    """Append a perspective camera node at the origin looking down -Z (the input camera in glTF).
+def _add_camera(tree: dict, camera: Camera, up: np.ndarray | None = None) -> None:
+    """Append a perspective camera node at the origin looking down -Z (the input camera in glTF), turned
+    with the scene when it is levelled (``up``).
 
     glTF cameras have no principal point, so an off-centre (cx, cy) is not represented.
     """
@@ -135,7 +159,12 @@ def _add_camera(tree: dict, camera: Camera) -> None:
             },
         }
     )
-    tree["nodes"].append({"name": "input_camera", "camera": len(tree["cameras"]) - 1})
+    node = {"name": "input_camera", "camera": len(tree["cameras"]) - 1}
+    if up is not None:  # the camera's own axes in the levelled frame: L F^T (column-major matrix)
+        m = np.eye(4)
+        m[:3, :3] = level_rotation(up) @ OPENCV_TO_GLTF.T
+        node["matrix"] = [float(v) for v in m.T.reshape(-1)]
+    tree["nodes"].append(node)
     tree["scenes"][0]["nodes"].append(len(tree["nodes"]) - 1)
 
 
@@ -148,19 +177,24 @@ def write_glb(
     point_colors: np.ndarray | None = None,
     alpha: float = 1.0,
     metadata: dict | None = None,
+    up: np.ndarray | None = None,
 ) -> Path:
     """Write cuboids (and optionally points (N, 3) m, OpenCV frame) as a GLB file, atomically.
 
     With ``camera`` a glTF camera node named ``input_camera`` is added at the origin, so viewers can look
-    through the input camera. Returns ``path``.
+    through the input camera. With ``up`` (the up direction in camera coordinates, from gravity) the scene
+    is levelled: the floor is horizontal and +Y is up. Returns ``path``.
     """
     from trimesh.exchange.gltf import export_glb
 
     if not 0.0 < alpha <= 1.0:
         raise ValueError(f"alpha must be in (0, 1], got {alpha}")
     meta = {"generator": "cuboids", "frame": "glTF = diag(1, -1, -1) * OpenCV camera frame, metres"}
+    if up is not None:
+        meta["frame"] = "glTF levelled by gravity (+Y up) = L * OpenCV camera frame, metres"
+        meta["gltf_from_camera"] = [[float(v) for v in row] for row in level_rotation(up)]
     meta.update(metadata or {})
-    scene = build_scene(cuboids, points, point_colors, alpha=alpha, metadata=meta)
-    post = None if camera is None else (lambda tree: _add_camera(tree, camera))
+    scene = build_scene(cuboids, points, point_colors, alpha=alpha, metadata=meta, up=up)
+    post = None if camera is None else (lambda tree: _add_camera(tree, camera, up))
     data = export_glb(scene, include_normals=True, tree_postprocessor=post)
     return atomic_write(path, lambda p: p.write_bytes(data))

@@ -5,6 +5,9 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+#: Orientation constraints of selected cuboids (FitConfig.align).
+ALIGN_MODES = ("free", "gravity", "manhattan")
+
 
 @dataclass(frozen=True)
 class FitConfig:
@@ -52,6 +55,17 @@ class FitConfig:
     """a_min: smallest cuboid half-size, m."""
     a_max: float = 2.0
     """a_max: largest cuboid half-size, m."""
+    slab_max_m: float | None = None
+    """Largest half-size of a slab (a box whose thinnest axis is under a quarter of its middle one) along
+    its two long axes when the winner grows, m: a wall or a floor may be longer than 2 a_max while its
+    thickness stays bounded. None = a_max (the paper's bound for every axis)."""
+    align: str = "free"
+    """Orientation of the selected cuboids: free (any rotation, the paper) | gravity (one axis vertical,
+    any yaw) | manhattan (the room's axes, or a free yaw where that fits better). gravity and manhattan
+    need an up direction: ``gravity_down`` or one estimated from the depth map (else the fit stays free)."""
+    gravity_down: tuple[float, float, float] | None = None
+    """Down direction in camera coordinates given by the user (an IMU, ARKit); None = estimate it from the
+    depth map when ``align`` needs it."""
     solver_lr: float = 0.01
     """Learning rate of the numerical solver's Adam (0.01 NYU, 0.5 outdoors)."""
     solver_iters: int = 50
@@ -94,6 +108,8 @@ class FitConfig:
             raise ValueError(f"max_batches must be at least 1, got {self.max_batches}")
         if not 0.0 < self.confidence < 1.0:
             raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
+        if self.align not in ALIGN_MODES:
+            raise ValueError(f"align must be one of {', '.join(ALIGN_MODES)}, got {self.align!r}")
         if not self.local_radii_m or min(self.local_radii_m) <= 0:
             raise ValueError(f"local_radii_m must be positive radii, got {self.local_radii_m}")
 

@@ -150,12 +150,19 @@ def make_result(
         "stop_reason": info.stop_reason,
         "rejected_gain": info.rejected_gain,
         "gains": info.gains,
+        "align": info.align,
+        "aligned": info.aligned,
+        "warnings": info.warnings,
     }
+    extras = {"fit_info": fit_info}
+    if info.gravity is not None:
+        extras["gravity"] = info.gravity.to_dict()
+        extras["world_from_camera"] = info.gravity.world_from_camera().tolist()
     return FitResult(
         camera=camera,
         cuboids=cuboids,
         settings=settings,
         timing_s=info.timing_s,
         input=input_meta,
-        extras={"fit_info": fit_info},
+        extras=extras,
     )

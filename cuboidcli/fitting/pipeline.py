@@ -26,7 +26,9 @@ from cuboidcli.fitting.sampling import (
     local_fraction_of,
     make_sampler,
 )
-from cuboidcli.fitting.scoring import ScoreParams, select_best, values_torch
+from cuboidcli.fitting.scoring import ScoreParams, select_best
+from cuboidcli.fitting.winner import Alignment, align_winner, refine_winner, values_one
+from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.solvers.base import CuboidSolver, SizeBounds
 
@@ -62,6 +64,14 @@ class FitInfo:
     """(Hs, Ws) int32 over the fitting grid: k >= 0 inlier of cuboid k, -1 none, -2 occluded, -3 no depth."""
     state: np.ndarray | None = None
     """(N,) f_OAI of the final set at the valid fitting points."""
+    gravity: Gravity | None = None
+    """The up/down direction used or estimated (None when not needed or not reliable)."""
+    align: str = "free"
+    """The orientation constraint applied: the configured one, or "free" when no gravity was available."""
+    aligned: list[str] = field(default_factory=list)
+    """Per selected cuboid: "manhattan", "gravity" or "free" (an aligned box fitted much worse)."""
+    warnings: list[str] = field(default_factory=list)
+    """Things the user should know about this fit (one line each)."""
 
     def add_depth_time(self, seconds: float) -> None:
         """Count a depth estimation from RGB as part of the frame's fitting time: stage "depth" (first) and
@@ -161,14 +171,21 @@ def fit_points(
     sampler: Sampler,
     progress: ProgressFn | None = None,
     timing: dict | None = None,
+    alignment: Alignment | None = None,
 ) -> tuple[list[Cuboid], FitInfo]:
-    """Sequential robust fitting on prepared points (Sec. 3.2). ``timing`` collects per-stage seconds."""
+    """Sequential robust fitting on prepared points (Sec. 3.2). ``timing`` collects per-stage seconds;
+    ``alignment`` constrains the orientation of the selected cuboids (None = free)."""
     timing = {} if timing is None else timing
     for k in ("sample", "solve", "score", "update"):
         timing.setdefault(k, 0.0)
     pts = prep.points
     n = pts.shape[0]
-    info = FitInfo(theta=config.theta_for(n), n_points=n, grid_step=config.grid_step)
+    info = FitInfo(
+        theta=config.theta_for(n),
+        n_points=n,
+        grid_step=config.grid_step,
+        align="free" if alignment is None else alignment.mode,
+    )
     sp = ScoreParams(config.tau_sq_m2, config.beta, config.tau_c, config.occlusion_aware)
     gen = torch.Generator().manual_seed(config.seed)
     state = torch.zeros(n, dtype=torch.float64, device=pts.device)
@@ -208,9 +225,19 @@ def fit_points(
         c_b, a_b, R_b = best_hyp
         values = values_one(pts, c_b, a_b, R_b, sp)
         if config.refine:
-            c_b, a_b, R_b, values, gain = _refine(pts, c_b, a_b, R_b, values, state, gain, sp, config, gen)
+            c_b, a_b, R_b, values, gain = refine_winner(
+                pts, c_b, a_b, R_b, values, state, gain, sp, config, gen
+            )
             t5 = time.perf_counter()
             timing["refine"] = timing.get("refine", 0.0) + t5 - t4
+            t4 = t5
+        if alignment is not None:
+            c_b, a_b, R_b, values, gain, kind = align_winner(
+                pts, c_b, a_b, R_b, values, state, gain, sp, config, alignment
+            )
+            info.aligned.append(kind)
+            t5 = time.perf_counter()
+            timing["align"] = timing.get("align", 0.0) + t5 - t4
             t4 = t5
         cuboids.append(
             Cuboid(c_b[0].cpu().numpy(), a_b[0].cpu().numpy(), R_b[0].cpu().numpy(), inlier_gain=gain)
@@ -297,131 +324,6 @@ def miss_probability(
     return float(np.exp(config.hypotheses * batches * np.log1p(-min(hit, 1.0 - 1e-12))))
 
 
-def _refine(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator):
-    """Refine the winner on the points it newly explains, grow it face by face
-    (:func:`grow_cuboid`), and refine the grown box again. Each result is kept only if the gain holds."""
-    c, a, R, values, gain = _refine_once(pts, c, a, R, values, state, gain, sp, config, gen)
-    if config.grow_rounds < 1:
-        return c, a, R, values, gain
-    c2, a2, values2, gain2 = grow_cuboid(pts, c, a, R, state, gain, sp, config)
-    if gain2 <= gain:
-        return c, a, R, values, gain
-    return _refine_once(pts, c2, a2, R, values2, state, gain2, sp, config, gen)
-
-
-def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
-    """Push each face of a cuboid outwards while the inlier-count gain rises (region growing).
-
-    A minimal set of six points spans only part of a wall, a floor or a table top, and the solver's box
-    ends at those points. Each round tries every face (for a slab, the faces across its thickness, an
-    axis under a quarter of the middle one, stay): first a step of half the box's extent along that axis
-    (at least ``config.grow_step_m``), then a step of ``grow_step_m``; a move is kept when the gain rises,
-    and a face that cannot move is done. Sizes stay within a_max. A big step may overshoot into space
-    without points, so each face is then pulled back in steps of 0.8 ... ``grow_step_m`` m as long as the
-    gain drops by less than 0.1 %: the box ends where its surface ends. Returns (center, half, values,
-    gain) with (1, 3) tensors; the inputs when nothing grew."""
-    c = c.clone()
-    a = a.clone()
-    values = None
-    axes = R[0].double()
-    order = torch.argsort(a[0])
-    slab_axis = int(order[0]) if a[0, order[0]] < 0.25 * a[0, order[1]] else -1
-    faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
-    done: set = set()
-    for _ in range(config.grow_rounds):
-        moved = False
-        for k, sgn in faces:
-            if (k, sgn) in done:
-                continue
-            grew = False
-            for step in (max(float(a[0, k]), config.grow_step_m), config.grow_step_m):
-                new_half = min(float(a[0, k]) + 0.5 * step, config.a_max)
-                grow = new_half - float(a[0, k])
-                if grow <= 1e-6:
-                    break
-                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, grow, state, sp)
-                if g2 > gain + 1e-6:
-                    c, a, values, gain, grew = c2, a2, v2, g2, True
-                    break
-            if grew:
-                moved = True
-            else:
-                done.add((k, sgn))
-        if not moved:
-            break
-    if values is None:
-        return c, a, values_one(pts, c, a, R, sp), gain
-    # big steps may overshoot into space without points: pull each face back while no gain is lost
-    floor = gain - 1e-3 * abs(gain)
-    for k, sgn in faces:
-        for step in (0.8, 0.4, 0.2, config.grow_step_m):
-            while float(a[0, k]) - 0.5 * step >= config.a_min:
-                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp)
-                if g2 < floor:
-                    break
-                c, a, values, gain = c2, a2, v2, g2
-    return c, a, values, gain
-
-
-def _move_face(pts, c, a, R, axes, k: int, side: float, delta: float, state, sp: ScoreParams):
-    """The box with the half-size along axis k changed by ``delta`` (m) and the centre shifted so that only
-    the face on ``side`` (+1 / -1) moves, by 2 * delta; the opposite face stays. Returns (center, half,
-    values, gain) of the moved box."""
-    c2 = c + (side * delta * axes[:, k]).to(c.dtype)[None]
-    a2 = a.clone()
-    a2[0, k] += delta
-    v2 = values_one(pts, c2, a2, R, sp)
-    return c2, a2, v2, gain_of(v2, state)
-
-
-def gain_of(values: torch.Tensor, state: torch.Tensor) -> float:
-    """Inlier-count gain of one cuboid with per-point values f_OAI ``values`` over the current ``state``."""
-    return float((combine(values, state) - state).sum())
-
-
-def _refine_once(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator):
-    """Refine a cuboid on the points it newly explains; keep the result only if the gain holds."""
-    from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
-
-    inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)
-    if inl.numel() < config.min_set:
-        return c, a, R, values, gain
-    if inl.numel() > config.refine_max_points:
-        inl = inl[torch.randperm(inl.numel(), generator=gen)[: config.refine_max_points].to(inl.device)]
-    if pts.device.type == "cpu":
-        out = refine_cuboid_fused(
-            pts[inl].numpy(), c[0].numpy(), a[0].numpy(), R[0].numpy(), config.a_min, config.a_max
-        )
-        c2, a2, R2 = (torch.from_numpy(np.asarray(x)) for x in out)
-    else:
-        c2, a2, R2 = refine_cuboid(pts[inl], c[0], a[0], R[0], config.a_min, config.a_max)
-    c2, a2, R2 = c2[None].to(c.dtype), a2[None].to(a.dtype), R2[None].to(R.dtype)
-    v2 = values_one(pts, c2, a2, R2, sp)
-    g2 = gain_of(v2, state)
-    if g2 >= gain - 0.005 * abs(gain):
-        return c2, a2, R2, v2, g2
-    return c, a, R, values, gain
-
-
-def values_one(pts, c, a, R, sp: ScoreParams) -> torch.Tensor:
-    """f_OAI of one cuboid at every point (N,), float64."""
-    if pts.device.type == "cpu":
-        from cuboidcli.fitting.fused import cuboid_values
-
-        v = cuboid_values(
-            pts.double().numpy(),
-            c.double().numpy(),
-            a.double().numpy(),
-            R.double().numpy(),
-            sp.tau,
-            sp.beta,
-            sp.tau_c,
-            sp.occlusion_aware,
-        )
-        return torch.from_numpy(v[0])
-    return values_torch(pts.double(), c.double(), a.double(), R.double(), sp)[0]
-
-
 def fit_depth(
     depth_m: np.ndarray,
     camera: Camera,
@@ -447,13 +349,63 @@ def fit_depth(
     t0 = time.perf_counter()
     prep = prepare_points(depth_m, camera, config.grid_step, device)
     timing = {"prepare": time.perf_counter() - t0}
-    cuboids, info = fit_points(prep, config, solver, sampler, progress, timing)
+    t = time.perf_counter()
+    gravity, alignment, warning = resolve_alignment(prep, config)
+    if config.align != "free" or config.gravity_down is not None:
+        timing["gravity"] = time.perf_counter() - t
+    cuboids, info = fit_points(prep, config, solver, sampler, progress, timing, alignment)
+    info.gravity = gravity
+    if warning:
+        info.warnings.append(warning)
     timing["total"] = time.perf_counter() - t0
     t = time.perf_counter()
     info.assignment = grid_assignment(prep, info.state, cuboids, config)
     timing["assign"] = time.perf_counter() - t
     info.timing_s = {k: round(v, 6) for k, v in timing.items()}
     return cuboids, info
+
+
+def resolve_alignment(
+    prep: PreparedPoints, config: FitConfig
+) -> tuple[Gravity | None, Alignment | None, str]:
+    """Gravity and the orientation constraint of a fit: (gravity or None, alignment or None, warning).
+
+    A given ``config.gravity_down`` is used as it is; otherwise gravity is estimated from the depth map
+    when ``config.align`` needs it (geometry/gravity.py). "manhattan" also needs the room's horizontal
+    axes, estimated from the surface normals and made exactly perpendicular to the gravity used. Without
+    a reliable gravity the fit stays free, with a warning.
+    """
+    if config.align == "free" and config.gravity_down is None:
+        return None, None, ""
+    hs, ws = prep.grid_shape
+    grid = np.zeros((hs * ws, 3))
+    grid[prep.grid_index.numpy()] = prep.points.double().cpu().numpy()
+    grid = grid.reshape(hs, ws, 3)
+    estimated = estimate_gravity(grid, seed=config.seed)
+    if config.gravity_down is not None:
+        gravity = given_gravity(config.gravity_down)
+        if estimated is not None:  # keep the room's axes for "manhattan", made vertical for the given down
+            gravity = Gravity(
+                gravity.down, "given", 1.0, manhattan_axes(gravity.down, estimated.frame), estimated.support
+            )
+    else:
+        gravity = estimated
+    if config.align == "free":
+        return gravity, None, ""
+    if gravity is None:
+        return (
+            None,
+            None,
+            (
+                f"no reliable gravity in this depth map (too few floor, wall or table surfaces); "
+                f"cuboids are fitted free instead of {config.align}-aligned (give --gravity gx,gy,gz)"
+            ),
+        )
+    axes = gravity.frame if config.align == "manhattan" else None
+    warning = ""
+    if config.align == "manhattan" and axes is None:
+        warning = "no room axes in this depth map; cuboids are gravity-aligned with a free yaw"
+    return gravity, Alignment(config.align, gravity.up, axes), warning
 
 
 def grid_assignment(

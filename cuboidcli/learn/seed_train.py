@@ -29,9 +29,10 @@ import numpy as np
 import torch
 
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import PreparedPoints, values_one
+from cuboidcli.fitting.pipeline import PreparedPoints
 from cuboidcli.fitting.sampling import SamplingContext, SequentialSampler, draw_hypotheses
 from cuboidcli.fitting.scoring import ScoreParams, gains_cpu
+from cuboidcli.fitting.winner import values_one
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.atomic import atomic_torch_save
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, prepare_scenes

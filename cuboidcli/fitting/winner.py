@@ -1,0 +1,256 @@
+"""What happens to the winner of a step before it joins the set (paper Sec. 3.2 selects it as drawn; the
+refinements here are ours): refinement on the points it newly explains, growing face by face to where its
+surface ends, and, when asked, alignment to gravity or to the room's Manhattan frame with extents re-fitted
+to its inliers (tight, upright boxes).
+
+All functions take one cuboid as (1, 3) centre, (1, 3) half-sizes and (1, 3, 3) rotation tensors (columns
+= the cuboid's axes, OpenCV camera frame, metres) and the points' current state (N,).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.scoring import ScoreParams, values_torch
+from cuboidcli.geometry.gravity import manhattan_rotation, upright_rotation
+from cuboidcli.geometry.kernels import combine
+
+#: An aligned winner replaces the free one only while it keeps this share of the free one's gain: a box
+#: that is really tilted (a leaning board, a wrong gravity) stays free rather than fit badly.
+ALIGN_KEEP = 0.8
+#: Manhattan axes are preferred over a free yaw unless the free yaw gains this share more.
+MANHATTAN_SLACK = 0.02
+#: A point lies on a face plane of an aligned box when it is this close to it (m); about tau.
+FACE_BAND_M = 0.06
+
+
+@dataclass(frozen=True)
+class Alignment:
+    """The constraint on the orientation of selected cuboids."""
+
+    mode: str
+    """"gravity" (one axis vertical, free yaw) or "manhattan" (the room's axes, or a free yaw where that
+    fits better)."""
+    up: np.ndarray
+    """(3,) unit up vector in camera coordinates."""
+    axes: np.ndarray | None = None
+    """(3, 3) the room's axes (columns: up, two horizontal), for "manhattan"; None = gravity only."""
+
+
+def refine_winner(
+    pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator
+):
+    """Refine the winner on the points it newly explains, grow it face by face
+    (:func:`grow_cuboid`), and refine the grown box again. Each result is kept only if the gain holds."""
+    c, a, R, values, gain = _refine_once(pts, c, a, R, values, state, gain, sp, config, gen)
+    if config.grow_rounds < 1:
+        return c, a, R, values, gain
+    c2, a2, values2, gain2 = grow_cuboid(pts, c, a, R, state, gain, sp, config)
+    if gain2 <= gain:
+        return c, a, R, values, gain
+    return _refine_once(pts, c2, a2, R, values2, state, gain2, sp, config, gen)
+
+
+def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
+    """Push each face of a cuboid outwards while the inlier-count gain rises (region growing).
+
+    A minimal set of six points spans only part of a wall, a floor or a table top, and the solver's box
+    ends at those points. Each round tries every face (for a slab, the faces across its thickness, an
+    axis under a quarter of the middle one, stay): first a step of half the box's extent along that axis
+    (at least ``config.grow_step_m``), then a step of ``grow_step_m``; a move is kept when the gain rises,
+    and a face that cannot move is done. Sizes stay within a_max (a slab's two long axes within
+    ``config.slab_max_m``: a wall or a floor may be longer than 2 a_max). A big step may overshoot into space
+    without points, so each face is then pulled back in steps of 0.8 ... ``grow_step_m`` m as long as the
+    gain drops by less than 0.1 %: the box ends where its surface ends. Returns (center, half, values,
+    gain) with (1, 3) tensors; the inputs when nothing grew."""
+    c = c.clone()
+    a = a.clone()
+    values = None
+    axes = R[0].double()
+    order = torch.argsort(a[0])
+    slab_axis = int(order[0]) if a[0, order[0]] < 0.25 * a[0, order[1]] else -1
+    faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
+    slab_cap = config.a_max if config.slab_max_m is None else max(config.a_max, config.slab_max_m)
+    caps = [config.a_max if slab_axis < 0 else slab_cap] * 3
+    done: set = set()
+    for _ in range(config.grow_rounds):
+        moved = False
+        for k, sgn in faces:
+            if (k, sgn) in done:
+                continue
+            grew = False
+            for step in (max(float(a[0, k]), config.grow_step_m), config.grow_step_m):
+                new_half = min(float(a[0, k]) + 0.5 * step, caps[k])
+                grow = new_half - float(a[0, k])
+                if grow <= 1e-6:
+                    break
+                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, grow, state, sp)
+                if g2 > gain + 1e-6:
+                    c, a, values, gain, grew = c2, a2, v2, g2, True
+                    break
+            if grew:
+                moved = True
+            else:
+                done.add((k, sgn))
+        if not moved:
+            break
+    if values is None:
+        return c, a, values_one(pts, c, a, R, sp), gain
+    # big steps may overshoot into space without points: pull each face back while no gain is lost
+    floor = gain - 1e-3 * abs(gain)
+    for k, sgn in faces:
+        for step in (0.8, 0.4, 0.2, config.grow_step_m):
+            while float(a[0, k]) - 0.5 * step >= config.a_min:
+                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp)
+                if g2 < floor:
+                    break
+                c, a, values, gain = c2, a2, v2, g2
+    return c, a, values, gain
+
+
+def _move_face(pts, c, a, R, axes, k: int, side: float, delta: float, state, sp: ScoreParams):
+    """The box with the half-size along axis k changed by ``delta`` (m) and the centre shifted so that only
+    the face on ``side`` (+1 / -1) moves, by 2 * delta; the opposite face stays. Returns (center, half,
+    values, gain) of the moved box."""
+    c2 = c + (side * delta * axes[:, k]).to(c.dtype)[None]
+    a2 = a.clone()
+    a2[0, k] += delta
+    v2 = values_one(pts, c2, a2, R, sp)
+    return c2, a2, v2, gain_of(v2, state)
+
+
+def gain_of(values: torch.Tensor, state: torch.Tensor) -> float:
+    """Inlier-count gain of one cuboid with per-point values f_OAI ``values`` over the current ``state``."""
+    return float((combine(values, state) - state).sum())
+
+
+def _refine_once(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator):
+    """Refine a cuboid on the points it newly explains; keep the result only if the gain holds."""
+    from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
+
+    inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)
+    if inl.numel() < config.min_set:
+        return c, a, R, values, gain
+    a_max = max(config.a_max, float(a.max()))  # a grown long slab keeps its length
+    if inl.numel() > config.refine_max_points:
+        inl = inl[torch.randperm(inl.numel(), generator=gen)[: config.refine_max_points].to(inl.device)]
+    if pts.device.type == "cpu":
+        out = refine_cuboid_fused(
+            pts[inl].numpy(), c[0].numpy(), a[0].numpy(), R[0].numpy(), config.a_min, a_max
+        )
+        c2, a2, R2 = (torch.from_numpy(np.asarray(x)) for x in out)
+    else:
+        c2, a2, R2 = refine_cuboid(pts[inl], c[0], a[0], R[0], config.a_min, a_max)
+    c2, a2, R2 = c2[None].to(c.dtype), a2[None].to(a.dtype), R2[None].to(R.dtype)
+    v2 = values_one(pts, c2, a2, R2, sp)
+    g2 = gain_of(v2, state)
+    if g2 >= gain - 0.005 * abs(gain):
+        return c2, a2, R2, v2, g2
+    return c, a, R, values, gain
+
+
+def values_one(pts, c, a, R, sp: ScoreParams) -> torch.Tensor:
+    """f_OAI of one cuboid at every point (N,), float64."""
+    if pts.device.type == "cpu":
+        from cuboidcli.fitting.fused import cuboid_values
+
+        v = cuboid_values(
+            pts.double().numpy(),
+            c.double().numpy(),
+            a.double().numpy(),
+            R.double().numpy(),
+            sp.tau,
+            sp.beta,
+            sp.tau_c,
+            sp.occlusion_aware,
+        )
+        return torch.from_numpy(v[0])
+    return values_torch(pts.double(), c.double(), a.double(), R.double(), sp)[0]
+
+
+def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, alignment: Alignment):
+    """Turn a (refined, grown) winner upright or onto the room's axes, re-fit its extents to the points it
+    explains, and grow it again.
+
+    Candidates: the nearest upright rotation (same yaw, :func:`upright_rotation`) and, for "manhattan",
+    the nearest signed permutation of the room's axes (:func:`manhattan_rotation`; always taken by slabs,
+    the walls, floor and ceiling of a room, and by other boxes unless the free yaw gains
+    ``MANHATTAN_SLACK`` more). Each candidate keeps the winner's centre and sizes, its faces are
+    moved onto the winner's new inliers (:func:`_refit_box`), and it grows like any winner.
+    The best candidate replaces the winner when it keeps ``ALIGN_KEEP`` of its gain.
+    Returns (c, a, R, values, gain, kind) with kind "manhattan", "gravity" or "free" (kept as it was).
+    """
+    inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)
+    if inl.numel() < config.min_set:
+        inl = (values >= 0.5).nonzero().squeeze(1)
+    if inl.numel() < config.min_set:
+        return c, a, R, values, gain, "free"
+    p = pts[inl].double().cpu().numpy()
+    r0 = R[0].double().cpu().numpy()
+    candidates = [("gravity", upright_rotation(r0, alignment.up))]
+    if alignment.mode == "manhattan" and alignment.axes is not None:
+        candidates.append(("manhattan", manhattan_rotation(r0, alignment.axes)))
+    results = []
+    c0, a0 = c[0].double().cpu().numpy(), a[0].double().cpu().numpy()
+    for kind, rot in candidates:
+        cn, an = _refit_box(p, c0, a0, rot, config.a_min)
+        c2, a2, R2 = (torch.from_numpy(x)[None].to(c.dtype) for x in (cn, an, rot))
+        v2 = values_one(pts, c2, a2, R2, sp)
+        g2 = gain_of(v2, state)
+        if g2 <= 0.0:  # nothing to grow from
+            results.append((kind, c2, a2, R2, v2, g2))
+            continue
+        c3, a3, v3, g3 = grow_cuboid(pts, c2, a2, R2, state, g2, sp, config)
+        results.append((kind, c3, a3, R2, v3, g3))
+    kind, c2, a2, R2, v2, g2 = results[-1]
+    if kind == "manhattan" and not _is_slab(a2) and results[0][5] > g2 + MANHATTAN_SLACK * abs(g2):
+        kind, c2, a2, R2, v2, g2 = results[0]
+    if g2 < ALIGN_KEEP * gain:
+        return c, a, R, values, gain, "free"
+    return c2, a2, R2, v2, g2, kind
+
+
+def _is_slab(half: torch.Tensor) -> bool:
+    """A slab (wall, floor, ceiling, table top): its thinnest axis under a quarter of its middle one."""
+    a = torch.sort(half.reshape(-1)).values
+    return bool(a[0] < 0.25 * a[1])
+
+
+def _refit_box(p: np.ndarray, center: np.ndarray, half: np.ndarray, rot: np.ndarray, a_min: float):
+    """The box of the given half-sizes and centre turned to axes ``rot``, with its faces moved onto the
+    points p (M, 3) it explains: a point lies on the face plane nearest to it when it is within
+    ``FACE_BAND_M`` of it, and a face with points moves to their median; faces without points stay
+    (growing moves them). A slab keeps its thickness, is centred on the median of its points across it
+    and spans the 1st to 99th percentile of them along its two long axes.
+    Returns (center (3,), half (3,))."""
+    local = (p - center) @ rot
+    half = half.copy()
+    order = np.argsort(half)
+    slab = int(order[0]) if half[order[0]] < 0.25 * half[order[1]] else -1
+    # distance of every point to each face plane, faces ordered (+x, -x, +y, -y, +z, -z): (M, 6)
+    dist = np.abs(local[:, :, None] - np.stack([half, -half], axis=1)[None]).reshape(len(p), 6)
+    nearest = dist.argmin(1)
+    on_face = dist.min(1) < FACE_BAND_M
+    lo, hi = -half.copy(), half.copy()
+    mid = np.zeros(3)
+    for k in range(3):
+        if k == slab:
+            mid[k] = np.median(local[:, k])
+            continue
+        if slab >= 0:  # a slab's edges have no points on them: it ends where its points end
+            lo[k], hi[k] = np.percentile(local[:, k], [1.0, 99.0])
+            mid[k], half[k] = 0.5 * (lo[k] + hi[k]), 0.5 * (hi[k] - lo[k])
+            continue
+        for side, bound in ((0, hi), (1, lo)):
+            sel = on_face & (nearest == 2 * k + side)
+            if sel.sum() >= 5:
+                bound[k] = np.median(local[sel, k])
+        if hi[k] - lo[k] < 2 * a_min:
+            lo[k], hi[k] = -half[k], half[k]
+        mid[k] = 0.5 * (lo[k] + hi[k])
+        half[k] = 0.5 * (hi[k] - lo[k])
+    return center + rot @ mid, np.maximum(half, a_min)
