@@ -140,6 +140,7 @@ def test_adaptive_termination_draws_more_batches_before_giving_up(demo_room):
 def test_paper_preset_keeps_the_papers_sampling():
     config, _, _ = resolve("paper")
     assert (config.local_fraction, config.max_batches, config.refine) == (0.0, 1, False)
+    assert config.slab_max_m is None and config.align == "free"  # every half-size within a_max
     for name in ("seqransac", "seqransac-oai", "ours"):
         config, _, _ = resolve(name)
-        assert config.local_fraction == 0.0 and config.max_batches == 1
+        assert config.local_fraction == 0.0 and config.max_batches == 1 and config.slab_max_m is None
