@@ -43,7 +43,7 @@ def resolve_depth_scale(depth_scale: float | None, intr: Intrinsics, preset: str
 
 @dataclass(frozen=True)
 class DepthModelOptions:
-    """How to get depth from an RGB image when no depth map is given (issue 7's estimators)."""
+    """How to get depth from an RGB image when no depth map is given (:mod:`cuboidcli.depth`)."""
 
     model: str | None = None
     """None = the built-in network (models/depth_v3.pt); a .pt checkpoint or a user's .onnx model."""
