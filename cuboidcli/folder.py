@@ -8,7 +8,6 @@ valid "cuboids/1" file fitted with the same settings (:func:`is_complete`).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
@@ -57,16 +56,9 @@ def fitter_for(config: FitConfig, weights: str | None, onnx: str | None):
     return Fitter(config, weights=weights, onnx=onnx, device=config.device)
 
 
-def settings_match(saved: dict, job: FolderJob) -> bool:
-    """Whether a saved result's settings are those ``job`` would fit with (FitConfig fields and weights)."""
-    wanted = json.loads(json.dumps(job.config.to_dict()))
-    if any(saved.get(k) != v for k, v in wanted.items()):
-        return False
-    return saved.get("weights") == job.weights and saved.get("onnx") == job.onnx
-
-
 def is_complete(out_json: Path, job: FolderJob) -> bool:
     """The frame's outputs exist and its JSON is a valid "cuboids/1" result fitted with ``job``'s settings."""
+    from cuboidcli.fitting.frame import same_settings
     from cuboidcli.io.result import read_result
 
     if not all(p.is_file() for p in job.outputs(out_json)):
@@ -75,7 +67,8 @@ def is_complete(out_json: Path, job: FolderJob) -> bool:
         saved = read_result(out_json)
     except (OSError, ValueError, KeyError, TypeError):
         return False
-    return isinstance(saved.settings, dict) and settings_match(saved.settings, job)
+    extra = {"weights": job.weights, "onnx": job.onnx}
+    return isinstance(saved.settings, dict) and same_settings(saved.settings, job.config, extra)
 
 
 def fit_file(job: FolderJob, source: str, out_json: str) -> Outcome:

@@ -17,15 +17,12 @@ from rich.progress import (
 from rich.table import Table
 
 from cuboidcli.api import Fitter
-from cuboidcli.cli.common import (
-    console,
-    fail,
-    out,
+from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
+from cuboidcli.cli.scale_options import (
     ray_address_option,
     ray_option,
     ray_target,
-    resolve_device,
-    user_errors,
+    skip_existing_option,
     workers_option,
 )
 from cuboidcli.folder import FolderJob, fitter_for
@@ -230,10 +227,8 @@ def fit(
     workers: int = workers_option(),
     ray: bool = ray_option(),
     ray_address: str = ray_address_option(),
-    skip_existing: bool = typer.Option(
-        True,
-        "--skip-existing/--no-skip-existing",
-        help="A folder: skip frames whose outputs exist and were fitted with the same settings.",
+    skip_existing: bool = skip_existing_option(
+        "A folder: skip frames whose outputs exist and were fitted with the same settings."
     ),
 ) -> None:
     """Fit cuboids to a depth map (or every depth map in a folder) and write "cuboids/1" JSON.

@@ -159,3 +159,12 @@ def make_result(
         input=input_meta,
         extras={"fit_info": fit_info},
     )
+
+
+def same_settings(saved: dict, config: FitConfig, extra_settings: dict | None = None) -> bool:
+    """Whether a saved result's ``settings`` (as :func:`make_result` writes them) are those of ``config``
+    and ``extra_settings`` (the weights used): a rerun may then keep that result instead of fitting again."""
+    import json
+
+    wanted = {**json.loads(json.dumps(config.to_dict())), **(extra_settings or {})}
+    return all(saved.get(k) == v for k, v in wanted.items())
