@@ -13,6 +13,7 @@ few tasks per CPU are in flight, so a million-frame run does not hold a million 
 
 from __future__ import annotations
 
+import logging
 import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -155,11 +156,19 @@ def _run_ray(fn, tasks, names, address: str, workers: int, record) -> None:
         raise ValueError("--ray needs Ray: pip install 'cuboids[ray]'") from e
     started = not ray.is_initialized()
     if started:
-        if address:
-            ray.init(address=address, log_to_driver=False)
-        else:
-            cpus = workers if workers > 1 else os.cpu_count()
-            ray.init(num_cpus=cpus, include_dashboard=False, log_to_driver=False)
+        try:
+            if address:
+                ray.init(address=address, log_to_driver=False, logging_level=logging.WARNING)
+            else:
+                cpus = workers if workers > 1 else os.cpu_count()
+                ray.init(
+                    num_cpus=cpus, include_dashboard=False, log_to_driver=False, logging_level=logging.WARNING
+                )
+        except Exception as e:  # no cluster at that address, a version mismatch, no resources
+            where = f"the Ray cluster at {address}" if address else "a local Ray"
+            raise ValueError(
+                f"cannot start or reach {where}: {str(e).splitlines()[0] if str(e) else e!r}"
+            ) from e
     try:
         remote = ray.remote(num_cpus=1, max_retries=0)(_ray_task)
         limit = max(1, int(ray.cluster_resources().get("CPU", workers))) * IN_FLIGHT_PER_WORKER
