@@ -2,7 +2,7 @@
 VENV ?= .venv
 BIN := $(VENV)/bin
 
-.PHONY: setup demo test lint bench clean
+.PHONY: setup demo test wheel-check lint bench clean
 
 setup: $(VENV)/.installed
 
@@ -15,6 +15,10 @@ demo: setup
 test: setup
 	$(BIN)/ruff check .
 	$(BIN)/pytest -q
+
+# Build the wheel, install it into a fresh venv outside the checkout, run the demo and a few fits there.
+wheel-check:
+	bash scripts/wheel_check.sh
 
 bench: setup
 	$(BIN)/python benchmarks/bench_fit.py

@@ -10,12 +10,62 @@ configuration; a bundle that is not there falls back to the top-level ``models/`
 
 from __future__ import annotations
 
+import hashlib
 import os
 from functools import lru_cache
 from pathlib import Path
 
-#: The shipped weights (a source checkout or an editable install); ``$CUBOIDS_MODELS`` overrides it.
-MODELS_DIR = Path(os.environ.get("CUBOIDS_MODELS", Path(__file__).resolve().parents[1] / "models"))
+
+def _shipped_models_dir() -> Path:
+    """Where the shipped weights are: ``cuboidcli/models`` in an installed wheel (the build copies the
+    repository's ``models/`` there, see setup.py), else the top-level ``models/`` of a source checkout or an
+    editable install."""
+    here = Path(__file__).resolve().parent
+    installed = here / "models"
+    return installed if installed.is_dir() else here.parent / "models"
+
+
+#: The shipped weights; ``$CUBOIDS_MODELS`` overrides them.
+MODELS_DIR = Path(os.environ.get("CUBOIDS_MODELS") or _shipped_models_dir())
+
+#: The files loaded when no weights are given: (what uses it, path relative to MODELS_DIR).
+DEFAULT_FILES = (
+    ("--sampler learned", "sampler_v2.pt"),
+    ("--solver neural", "neural/solver_v2.pt"),
+    ("--solver neural (sampler)", "neural/sampler_v2.pt"),
+    ("RGB input (depth network)", "depth_v3.pt"),
+)
+
+
+def short_hash(path: Path, digits: int = 12) -> str:
+    """The first ``digits`` hex digits of a file's SHA-256 (the model cards list the full ones)."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()[:digits]
+
+
+def describe_weights() -> list[str]:
+    """Lines for ``cuboids --version``: the models folder and each default weights file with a short hash."""
+    lines = [f"weights: {MODELS_DIR}" + ("  ($CUBOIDS_MODELS)" if os.environ.get("CUBOIDS_MODELS") else "")]
+    for use, rel in DEFAULT_FILES:
+        path = MODELS_DIR / rel
+        state = f"sha256 {short_hash(path)}" if path.is_file() else "MISSING"
+        lines.append(f"  {rel:<22} {state:<20} {use}")
+    return lines
+
+
+def shipped_path(value: str | os.PathLike) -> Path:
+    """A weights path as the documentation writes it (``models/solver_v1.pt``), found in the shipped
+    weights when it does not exist relative to the working directory (an installed package has no
+    ``models/`` folder there). Any other path is returned as given."""
+    path = Path(value)
+    parts = path.parts
+    if path.exists() or path.is_absolute() or len(parts) < 2 or parts[0] != "models":
+        return path
+    shipped = MODELS_DIR.joinpath(*parts[1:])
+    return shipped if shipped.exists() else path
 
 
 def default_weights_dir(solver: str, rgb: bool = False, builtin_depth: bool = True) -> Path | None:
@@ -36,7 +86,7 @@ def default_depth_weights() -> Path:
 
     depth_v3 (48 min on 960 synthetic rooms) gives better cuboids from RGB than depth_v1 (36 min on 320
     rooms) on the synthetic test split and the real sample photos (models/depth_v3.md). depth_v1 and its
-    end-to-end fine-tuned version ``models/rgb/depth_v2.pt`` (the fine-tuning experiment of issue 7) stay
+    end-to-end fine-tuned version ``models/rgb/depth_v2.pt`` stay
     available with ``--depth-model``.
     """
     return MODELS_DIR / "depth_v3.pt"

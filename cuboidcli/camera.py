@@ -20,14 +20,18 @@ PRESETS: dict[str, dict[str, float]] = {
 
 @dataclass(frozen=True)
 class Camera:
-    """Pinhole intrinsics in pixels for an image of ``width`` x ``height`` pixels."""
+    """Pinhole intrinsics in pixels for an image of ``width`` x ``height`` pixels.
+
+    ``width``/``height`` 0 (the default) mean "the size of the image it is used with": the Python API
+    (:func:`cuboidcli.fit`) takes them from the depth map.
+    """
 
     fx: float
     fy: float
     cx: float
     cy: float
-    width: int
-    height: int
+    width: int = 0
+    height: int = 0
 
     @classmethod
     def preset(cls, name: str) -> Camera:

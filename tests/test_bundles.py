@@ -58,3 +58,40 @@ def test_default_bundles():
     assert default_weights_dir("neural") == MODELS_DIR / "neural"
     assert default_weights_dir("numerical", rgb=True, builtin_depth=False) is None
     assert bundles.default_depth_weights() == MODELS_DIR / "depth_v3.pt"
+
+
+def test_documented_models_paths_resolve_to_the_shipped_files(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # no models/ here, as for an installed package
+    assert bundles.shipped_path("models/solver_v1.pt") == MODELS_DIR / "solver_v1.pt"
+    assert bundles.shipped_path("models/rgb/depth_v2.pt") == MODELS_DIR / "rgb" / "depth_v2.pt"
+    # Other paths, and documented-looking paths that are not shipped, stay as given.
+    assert bundles.shipped_path("models/nothing.pt").as_posix() == "models/nothing.pt"
+    assert bundles.shipped_path("mine/solver.pt").as_posix() == "mine/solver.pt"
+    (tmp_path / "models").mkdir()
+    (tmp_path / "models" / "solver_v1.pt").write_bytes(b"local")
+    assert bundles.shipped_path("models/solver_v1.pt").as_posix() == "models/solver_v1.pt"
+
+
+def test_version_lists_the_default_weights_with_their_hashes():
+    lines = bundles.describe_weights()
+    assert lines[0].startswith(f"weights: {MODELS_DIR}")
+    # The short hashes agree with the full ones on the model card of the neural bundle.
+    card = (MODELS_DIR / "neural" / "README.md").read_text()
+    neural = next(line for line in lines if "neural/solver_v2.pt" in line)
+    assert neural.split("sha256 ")[1][:12] in card
+    assert len(lines) == 1 + len(bundles.DEFAULT_FILES) and not any("MISSING" in x for x in lines)
+
+
+def test_the_wheel_ships_every_weights_file_and_model_card():
+    """setup.py's build hook copies exactly these into cuboidcli/models/ of the wheel."""
+    from pathlib import Path
+
+    setup_py = Path(__file__).resolve().parents[1] / "setup.py"
+    # Read the file list without running setup(): execute everything above the call.
+    namespace: dict = {"__file__": str(setup_py)}
+    exec(compile(setup_py.read_text().split("\nsetup(")[0], str(setup_py), "exec"), namespace)
+    shipped = {p.relative_to(MODELS_DIR).as_posix() for p in namespace["shipped_files"]()}
+    for _, rel in bundles.DEFAULT_FILES:
+        assert rel in shipped
+    assert {"solver_v1.pt", "sampler_v3.pt", "rgb/depth_v2.pt", "depth_v1.pt", "README.md"} <= shipped
+    assert all(name.endswith((".pt", ".md")) for name in shipped)

@@ -8,6 +8,7 @@ import json
 import math
 import struct
 import zlib
+from dataclasses import replace
 from pathlib import Path
 
 import cv2
@@ -180,6 +181,48 @@ def test_workers_give_the_same_numbers_as_one_process(folder):
     assert strip == [{k: v for k, v in m.row().items() if k != "time_s"} for m in two.frames[0]]
     assert [m.cuboids for m in one.frames[0]] == [m.cuboids for m in two.frames[0]]
     assert sum(m.cuboids for m in one.frames[0]) >= 3
+
+
+def test_local_ray_gives_the_same_numbers_as_one_process(folder):
+    pytest.importorskip("ray")
+    frames, _ = load_frames(folder)
+    one = evaluate(frames, SMALL, EvalSettings(workers=1))
+    ray = evaluate(frames, SMALL, EvalSettings(workers=2, ray=""))  # a local Ray of 2 CPUs
+    strip = [{k: v for k, v in m.row().items() if k != "time_s"} for m in one.frames[0]]
+    assert strip == [{k: v for k, v in m.row().items() if k != "time_s"} for m in ray.frames[0]]
+    assert ray.counts.line() == "3 done, 0 skipped, 0 failed"
+
+
+def test_an_interrupted_evaluation_resumes_from_its_saved_fits(folder, tmp_path):
+    frames, _ = load_frames(folder)
+    settings = EvalSettings(save_fits_dir=tmp_path / "fits")
+    first = evaluate(frames, SMALL, settings)
+    assert first.counts.line() == "3 done, 0 skipped, 0 failed"
+    (tmp_path / "fits" / "seed0" / "f2.json").unlink()  # the run was interrupted before this frame
+    again = evaluate(frames, SMALL, settings)
+    assert again.counts.line() == "1 done, 2 skipped, 0 failed"
+    # Scored from the saved files: the same rows, times included (they are read from the files).
+    assert [m.row() for m in again.frames[0][:2]] == [m.row() for m in first.frames[0][:2]]
+    assert [m.cuboids for m in again.frames[0]] == [m.cuboids for m in first.frames[0]]
+    # Other settings, or --no-skip-existing, fit every frame again.
+    other = evaluate(frames, replace(SMALL, max_cuboids=2), settings)
+    assert other.counts.done == 3
+    redo = evaluate(frames, SMALL, replace(settings, skip_existing=False))
+    assert redo.counts.done == 3
+
+
+def test_a_failed_frame_is_reported_and_left_out_of_the_metrics(app, tmp_path):
+    root = tmp_path / "data"
+    make_folder(root)
+    (root / "depth" / "f1.png").write_bytes(b"not a png")
+    out = tmp_path / "out"
+    res = CliRunner().invoke(app, ["evaluate", str(root), *FAST_OPTS, "-o", str(out)])
+    assert res.exit_code == 1, res.output
+    assert "failed f1:" in res.output and "cannot decode image" in res.output
+    assert "2 done, 0 skipped, 1 failed" in res.output
+    doc = metrics_json(out)
+    assert [r["frame"] for r in doc["frames"]] == ["f0", "f2"] and doc["runs"][0]["frames"] == 2
+    assert doc["failed"][0]["frame"] == "f1" and "cannot decode" in doc["failed"][0]["message"]
 
 
 def test_frame_selection_split_names_and_limit(folder):

@@ -11,7 +11,15 @@ import typer
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
+from cuboidcli.bundles import shipped_path
 from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
+from cuboidcli.cli.scale_options import (
+    ray_address_option,
+    ray_option,
+    ray_target,
+    skip_existing_option,
+    workers_option,
+)
 
 #: Table columns in the paper's order (Table 1): (aggregate key, header, decimals).
 COLUMNS = (
@@ -184,7 +192,13 @@ def evaluate(
     limit: int = typer.Option(None, "--limit", help="Evaluate only the first N frames."),
     frames: str = typer.Option(None, "--frames", help="Comma-separated frame names, e.g. nyu_0001,nyu_0002."),
     runs: int = typer.Option(1, "--runs", help="Repeat with seeds SEED..SEED+R-1; report mean ± std."),
-    workers: int = typer.Option(1, "--workers", help="Evaluate frames in N processes (same numbers as 1)."),
+    workers: int = workers_option(),
+    ray: bool = ray_option(),
+    ray_address: str = ray_address_option(),
+    skip_existing: bool = skip_existing_option(
+        "With --save-fits: score the frames whose fit OUT/fits holds (same settings) from that file "
+        "instead of fitting them again, so that an interrupted evaluation resumes."
+    ),
     preset: str = typer.Option(
         None,
         "--preset",
@@ -241,14 +255,17 @@ def evaluate(
 
     if runs < 1:
         fail(f"--runs must be at least 1 (got {runs})")
-    if workers < 1:
-        fail(f"--workers must be at least 1 (got {workers})")
+    ray_at = ray_target(workers, ray, ray_address)
     if save_fits and output is None:
         fail("--save-fits writes into the output folder: pass -o OUT_DIR too")
     if fits is not None and not fits.is_dir():
         fail(f"--fits {fits}: folder not found")
     if fits is not None and (runs > 1 or save_fits):
         fail("--fits evaluates fixed cuboids: drop --runs and --save-fits")
+    if weights is not None:
+        weights = shipped_path(weights)
+    if depth_model is not None:
+        depth_model = shipped_path(depth_model)
     if weights is not None and not weights.exists():
         fail(f"--weights {weights}: no such folder or file")
     if depth_model is not None and not rgb:
@@ -284,6 +301,8 @@ def evaluate(
             weights_dir=weights,
             rgb=rgb,
             depth_model=depth_model,
+            ray=ray_at,
+            skip_existing=skip_existing,
         )
         n_runs = len(settings.seeds)
         columns = (
@@ -304,7 +323,14 @@ def evaluate(
                     description=f"run {ev.run + 1}/{ev.runs}" if ev.runs > 1 else "frames",
                 )
 
-            report = run(frame_list, config, settings, progress=on_frame)
+            def on_failed(r: int, outcome) -> None:
+                seed = f" (seed {settings.seeds[r]})" if n_runs > 1 else ""
+                console.print(f"[red]failed[/] {outcome.name}{seed}: {outcome.message}", highlight=False)
+
+            try:
+                report = run(frame_list, config, settings, progress=on_frame, on_failed=on_failed)
+            except ValueError as e:  # the engine could not start (Ray missing, a bad address)
+                fail(str(e))
         label = _method_label(config, applied, fits) + (" from RGB" if rgb else "")
         out.print(results_table(report, label))
         for table in (gt_table(report), objects_table(report), parsimony_table(report)):
@@ -327,11 +353,21 @@ def evaluate(
                 "weights_dir": None if weights is None else str(weights.resolve()),
                 "input": "rgb" if rgb else "depth",
                 "depth_model": None if depth_model is None else str(depth_model.resolve()),
+                "frames_done": report.counts.done,
+                "frames_skipped": report.counts.skipped,
+                "failed": report.failed,
             }
             for p in write_outputs(report, output, meta):
                 out.print(f"wrote {p}")
             if save_fits:
-                out.print(f"wrote {len(frame_list) * n_runs} fits under {output / 'fits'}")
+                out.print(f"wrote {report.counts.done} fits under {output / 'fits'}")
+        if report.counts.skipped or report.counts.failed:
+            out.print(
+                f"frames: {report.counts.line()} (skipped: scored from their saved fit; failed: left out "
+                "of the metrics)"
+            )
+    if report.counts.failed:
+        raise typer.Exit(1)
 
 
 def register(app: typer.Typer) -> None:

@@ -81,7 +81,10 @@ def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
 
             path = export_solver_onnx(None if weights is None else str(weights), str(onnx), opset=opset)
         except ImportError as e:
-            fail(f"ONNX export is unavailable ({e}); install the extra: pip install 'cuboids[onnx]'")
+            fail(
+                f"ONNX export is unavailable ({e}); onnx and onnxruntime are dependencies of cuboids: "
+                "pip install onnx onnxruntime"
+            )
         except (ValueError, RuntimeError, OSError) as e:
             fail(f"ONNX export failed: {e}")
     out.print(f"wrote {path}", highlight=False)

@@ -17,7 +17,16 @@ from rich.progress import (
 )
 from rich.table import Table
 
+from cuboidcli.api import Fitter
 from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
+from cuboidcli.cli.scale_options import (
+    ray_address_option,
+    ray_option,
+    ray_target,
+    skip_existing_option,
+    workers_option,
+)
+from cuboidcli.folder import FolderJob, fitter_for
 
 SAMPLE_DIR = Path(__file__).resolve().parents[1] / "data" / "sample"
 DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
@@ -26,74 +35,54 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 
 @dataclass
 class FitJob:
-    """Everything but the input files: how to read a frame, how to fit it, what to write."""
+    """Everything but the input files: how to read a frame, the estimator (built once), what to write."""
 
     intrinsics: str | None
     preset: str | None
     depth_scale: float | None
-    config: object
-    solver: object
-    sampler: object
-    weights: Path | None
-    onnx: Path | None
+    fitter: Fitter
     glb: bool = False
     ply: bool = False
     overlay: bool = False
     with_points: bool = False
     depth_model: object = None
-    quiet_source: bool = False
-    """Do not repeat the "depth estimated from RGB" note (every frame of a folder after the first)."""
 
     def run(self, depth: Path | None, image: Path | None, progress=None):
-        """Fit one frame; returns (FitResult, FrameInput, FitInfo)."""
-        from cuboidcli.fitting.frame import load_frame, make_result
-        from cuboidcli.fitting.pipeline import fit_depth
+        """Fit one frame; returns the api Result."""
+        from cuboidcli.fitting.frame import load_frame
 
         frame = load_frame(
             depth, image, self.intrinsics, self.preset, self.depth_scale, depth_model=self.depth_model
         )
         for note in frame.notes:
             console.print(f"[yellow]warning:[/] {note}", highlight=False)
-        if frame.meta["depth"] is None and not self.quiet_source:
+        if frame.meta["depth"] is None:
             console.print(f"[cyan]note:[/] {frame.meta['depth_source']}", highlight=False)
-        cuboids, info = fit_depth(
-            frame.depth_m,
-            frame.camera,
-            self.config,
-            solver=self.solver,
-            sampler=self.sampler,
-            progress=progress,
-        )
-        for note in info.warnings:
+        result = self.fitter.fit_frame(frame, progress=progress)
+        for note in result.info.warnings:
             console.print(f"[yellow]warning:[/] {note}", highlight=False)
-        if frame.depth_seconds is not None:
-            info.add_depth_time(frame.depth_seconds)
-        extra = {"weights": _str_or_none(self.weights), "onnx": _str_or_none(self.onnx)}
-        res = make_result(
-            frame.camera, cuboids, info, self.config, frame.meta, self.solver.name, self.sampler.name, extra
+        return result
+
+    def write(self, result, out_json: Path) -> list[Path]:
+        return result.save(
+            out_json, glb=self.glb, ply=self.ply, overlay=self.overlay, with_points=self.with_points
         )
-        return res, frame, info
 
-    def write(self, res, frame, out_json: Path) -> list[Path]:
-        from cuboidcli.io.result import write_result
-
-        written = [write_result(out_json, res)]
-        if self.glb or self.ply or self.overlay:
-            from cuboidcli.export import write_outputs
-
-            stem = out_json.with_name(out_json.name.removesuffix(".json"))
-            paths = write_outputs(
-                res,
-                stem,
-                depth_m=frame.depth_m,
-                rgb=frame.rgb,
-                glb=self.glb,
-                ply=self.ply,
-                overlay=self.overlay,
-                with_points=self.with_points,
-            )
-            written += list(paths.values())
-        return written
+    def folder_job(self) -> FolderJob:
+        """The picklable description of this job that worker processes and Ray tasks rebuild it from."""
+        return FolderJob(
+            config=self.fitter.config,
+            weights=_str_or_none(self.fitter.weights),
+            onnx=_str_or_none(self.fitter.onnx),
+            intrinsics=self.intrinsics,
+            preset=self.preset,
+            depth_scale=self.depth_scale,
+            depth_model=self.depth_model,
+            glb=self.glb,
+            ply=self.ply,
+            overlay=self.overlay,
+            with_points=self.with_points,
+        )
 
 
 def _str_or_none(p) -> str | None:
@@ -285,6 +274,12 @@ def fit(
     partial_depth: Path = typer.Option(
         None, "--partial-depth", help="Sparse/partial depth map to align a relative model to."
     ),
+    workers: int = workers_option(),
+    ray: bool = ray_option(),
+    ray_address: str = ray_address_option(),
+    skip_existing: bool = skip_existing_option(
+        "A folder: skip frames whose outputs exist and were fitted with the same settings."
+    ),
 ) -> None:
     """Fit cuboids to a depth map (or every depth map in a folder) and write "cuboids/1" JSON.
 
@@ -320,50 +315,35 @@ def fit(
             fail("IMAGE is a folder: give it without --depth (depth from the images) or use --depth FOLDER")
         if partial_depth is not None:
             fail("--partial-depth belongs to one image; it cannot align every image of a folder")
+    ray_at = ray_target(workers, ray, ray_address)
+    folder_input = (depth is not None and depth.is_dir()) or (depth is None and image.is_dir())
+    if (ray_at is not None or workers > 1) and not folder_input:
+        fail("--workers and --ray fit the frames of a folder: give a folder of depth maps or images")
     with user_errors():
-        from cuboidcli.bundles import default_weights_dir
-        from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
-        from cuboidcli.fitting.sampling import make_sampler
+        from cuboidcli.bundles import default_weights_dir, shipped_path
 
         if weights is None:  # the shipped bundle that matches the input and the solver
             weights = default_weights_dir(config.solver, rgb=depth is None, builtin_depth=depth_model is None)
         try:
-            solver_obj = make_solver(config, weights, onnx, config.device)
-            sampler_obj = make_sampler(config.sampler, weights, config.device)
+            # Built once per process and cached: a folder fitted in this process reuses it.
+            fitter = fitter_for(config, _str_or_none(weights), _str_or_none(onnx))
         except (ValueError, FileNotFoundError, ImportError) as e:
             fail(str(e))
-        if config.device == "cpu":
-            ensure_compiled()
-        job = FitJob(
-            intrinsics,
-            preset,
-            depth_scale,
-            config,
-            solver_obj,
-            sampler_obj,
-            weights,
-            onnx,
-            glb,
-            ply,
-            overlay,
-            with_points,
-        )
+        job = FitJob(intrinsics, preset, depth_scale, fitter, glb, ply, overlay, with_points)
         if depth is None:
             from cuboidcli.fitting.frame import DepthModelOptions
 
             job.depth_model = DepthModelOptions(
-                depth_model,
+                None if depth_model is None else str(shipped_path(depth_model)),
                 depth_model_kind,
                 relative_scale,
                 relative_shift,
                 None if partial_depth is None else str(partial_depth),
                 config.device,
             )
-            if image.is_dir():
-                _fit_folder(job, image, output, quiet, rgb=True)
-                return
-        elif depth.is_dir():
-            _fit_folder(job, depth, output, quiet)
+        if folder_input:
+            engine = _Engine(workers, ray_at)
+            _fit_folder(job, depth or image, output, quiet, depth is None, engine, skip_existing)
             return
         with Progress(
             SpinnerColumn(),
@@ -378,9 +358,10 @@ def fit(
             def step(it, n, gain):
                 prog.update(task, description=f"fitting: step {it + 1}, {n} cuboids (last gain {gain:.0f})")
 
-            res, frame, info = job.run(depth, image, step)
+            res = job.run(depth, image, step)
         stem = (depth or image).stem
-        written = job.write(res, frame, output or Path(f"{stem}_cuboids.json"))
+        written = job.write(res, output or Path(f"{stem}_cuboids.json"))
+    info = res.info
     if not quiet:
         out.print(cuboid_table(res))
         t = info.timing_s
@@ -393,9 +374,33 @@ def fit(
             out.print(f"wrote {p}")
 
 
-def _fit_folder(job: FitJob, folder: Path, output: Path | None, quiet: bool, rgb: bool = False) -> None:
-    """Fit every depth map (``rgb``: every colour image, depth estimated) of a folder, one JSON each."""
-    from cuboidcli.io.depth import InputError
+@dataclass(frozen=True)
+class _Engine:
+    """Where the frames of a folder run: ``workers`` local processes, or Ray (``ray`` "" = a local Ray,
+    else the cluster's address; None = no Ray)."""
+
+    workers: int = 1
+    ray: str | None = None
+
+    def describe(self) -> str:
+        if self.ray is not None:
+            return f"Ray at {self.ray}" if self.ray else "a local Ray"
+        return f"{self.workers} processes" if self.workers > 1 else "this process"
+
+
+def _fit_folder(
+    job: FitJob,
+    folder: Path,
+    output: Path | None,
+    quiet: bool,
+    rgb: bool,
+    engine: _Engine,
+    skip_existing: bool,
+) -> None:
+    """Fit every depth map (``rgb``: every colour image, depth estimated) of a folder, one JSON each, on
+    ``engine``; frames whose outputs exist are skipped; ends with a summary, exit 1 if any frame failed."""
+    from cuboidcli.folder import fit_file, is_complete
+    from cuboidcli.scaleout import Outcome, Summary, run_tasks
 
     suffixes = IMAGE_SUFFIXES if rgb else DEPTH_SUFFIXES
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in suffixes and p.is_file())
@@ -416,9 +421,26 @@ def _fit_folder(job: FitJob, folder: Path, output: Path | None, quiet: bool, rgb
     out_dir = output or Path(f"{folder.name}_cuboids")
     if out_dir.suffix == ".json":
         fail(f"-o must be a folder when {'IMAGE' if rgb else '--depth'} is a folder")
+    if out_dir.exists() and not out_dir.is_dir():
+        fail(f"-o {out_dir} is a file; give a folder")
     if job.intrinsics is None and (folder / "cameras.json").is_file():
         job.intrinsics = str(folder / "cameras.json")
-    failures = 0
+    spec = job.folder_job()
+    summary = Summary()
+    todo: list[Path] = []
+    for f in files:
+        if skip_existing and is_complete(out_dir / f"{f.stem}_cuboids.json", spec):
+            summary.add(Outcome(f.name, "skipped"))
+        else:
+            todo.append(f)
+    if not quiet and summary.skipped:
+        console.print(
+            f"[cyan]note:[/] skipped {summary.skipped} frames whose outputs exist in {out_dir}/ "
+            "(--no-skip-existing fits them again)",
+            highlight=False,
+        )
+    tasks = [(spec, str(f), str(out_dir / f"{f.stem}_cuboids.json")) for f in todo]
+    said_source = False
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -427,21 +449,39 @@ def _fit_folder(job: FitJob, folder: Path, output: Path | None, quiet: bool, rgb
         console=console,
         disable=quiet,
     ) as prog:
-        task = prog.add_task("fitting", total=len(files))
-        for i, f in enumerate(files):
-            try:
-                job.quiet_source = i > 0
-                res, frame, info = job.run(None, f) if rgb else job.run(f, None)
-                job.write(res, frame, out_dir / f"{f.stem}_cuboids.json")
-                desc = f"{f.name}: {len(res.cuboids)} cuboids, {info.timing_s['total']:.2f} s"
-            except InputError as e:
-                failures += 1
-                console.print(f"[red]skipped[/] {f.name}: {e}", highlight=False)
-                desc = f"{f.name}: skipped"
+        task = prog.add_task(f"fitting on {engine.describe()}", total=len(tasks))
+
+        def on_result(i: int, res: Outcome) -> None:
+            nonlocal said_source
+            summary.add(res)
+            for note in res.notes:
+                console.print(f"[yellow]warning:[/] {res.name}: {note}", highlight=False)
+            if res.status == "failed":
+                console.print(f"[red]failed[/] {res.name}: {res.message}", highlight=False)
+                desc = f"{res.name}: failed"
+            else:
+                n, seconds, source = res.value
+                if rgb and not said_source:
+                    console.print(f"[cyan]note:[/] {source}", highlight=False)
+                    said_source = True
+                desc = f"{res.name}: {n} cuboids, {seconds:.2f} s"
             prog.update(task, advance=1, description=desc)
-    if not quiet:
-        out.print(f"wrote {len(files) - failures} results to {out_dir}/")
-    if failures:
+
+        if tasks:
+            try:
+                run_tasks(
+                    fit_file,
+                    tasks,
+                    [f.name for f in todo],
+                    workers=engine.workers,
+                    ray=engine.ray,
+                    on_result=on_result,
+                )
+            except ValueError as e:  # the engine could not start (Ray missing, a bad address)
+                fail(str(e))
+    if not quiet or summary.failed:
+        out.print(f"{summary.line()}: results in {out_dir}/")
+    if summary.failed:
         raise typer.Exit(1)
 
 
@@ -497,6 +537,10 @@ def demo(
         relative_scale=None,
         relative_shift=None,
         partial_depth=None,
+        workers=1,
+        ray=False,
+        ray_address=None,
+        skip_existing=False,
     )
 
 

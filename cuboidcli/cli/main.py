@@ -20,14 +20,18 @@ app = typer.Typer(
 
 def _version(value: bool) -> None:
     if value:
+        from cuboidcli.bundles import describe_weights
+
         typer.echo(f"cuboids {__version__}")
+        for line in describe_weights():
+            typer.echo(line)
         raise typer.Exit()
 
 
 @app.callback()
 def main(
     version: bool = typer.Option(
-        False, "--version", callback=_version, is_eager=True, help="Print the version."
+        False, "--version", callback=_version, is_eager=True, help="Print the version and the weights in use."
     ),
 ) -> None:
     """cuboids: robust cuboid fitting for 3D scene abstraction."""

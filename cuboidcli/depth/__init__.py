@@ -1,4 +1,4 @@
-"""Depth from RGB (issue 7): depth estimators f_v behind one interface, the built-in network, its training.
+"""Depth from RGB: depth estimators f_v behind one interface, the built-in network, its training.
 
 Public entry points: :func:`depth_for_fit` (what ``cuboids fit image.png`` without ``--depth`` calls),
 :func:`estimate_depth` (the same with an estimator built once), :func:`make_depth_estimator`,

@@ -174,7 +174,8 @@ class OnnxDepthEstimator:
             import onnxruntime as ort  # optional dependency: imported only when an ONNX model is used
         except ImportError as e:
             raise ImportError(
-                "running an ONNX depth model needs onnxruntime: pip install 'cuboids[onnx]'"
+                "running an ONNX depth model needs onnxruntime (a dependency of cuboids): "
+                "pip install onnxruntime"
             ) from e
         self.kind, self.scale, self.shift, self.ref_depth = kind, scale, shift, ref_depth
         self.mean, self.std, self.input_size = mean, std, input_size

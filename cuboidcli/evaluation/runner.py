@@ -2,16 +2,16 @@
 
 Every frame is fitted independently with ``config.seed`` = the run's seed, so a frame's result does not
 depend on the order of frames or on the process that evaluates it: ``workers > 1`` spreads frames over
-processes and gives the same numbers as ``workers = 1`` (see :func:`evaluate`).
+processes, ``ray`` over Ray tasks (:mod:`cuboidcli.scaleout`), and both give the same numbers as
+``workers = 1`` (see :func:`evaluate`). A frame that fails is reported in the report's ``failed`` and left
+out of the aggregates; the others go on.
 """
 
 from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field, replace
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Protocol
 
@@ -24,6 +24,7 @@ from cuboidcli.evaluation.outputs import weights_hashes
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.io.depth import InputError
 from cuboidcli.io.result import read_result, write_result
+from cuboidcli.scaleout import Outcome, Summary, failed, run_tasks
 
 
 class EvalFrame(Protocol):
@@ -71,6 +72,12 @@ class EvalSettings:
     """Fit from each frame's RGB image through a depth estimator (scored against the true depth)."""
     depth_model: Path | None = None
     """With ``rgb``: the depth network (.pt of the built-in net or .onnx, metric); None = the shipped one."""
+    ray: str | None = None
+    """Run the frames as Ray tasks: "" = on a Ray started for this run (``workers`` CPUs), else the
+    address of a cluster ("auto", "ray://host:10001"); None = no Ray (``workers`` local processes)."""
+    skip_existing: bool = True
+    """With ``save_fits_dir``: a frame whose saved fit exists and was made with the same settings is scored
+    from that file instead of being fitted again (an interrupted evaluation resumes)."""
 
     @property
     def seeds(self) -> list[int]:
@@ -101,6 +108,10 @@ class EvalReport:
     summary: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Mean and std over runs of every aggregate."""
     weights: dict[str, dict] = field(default_factory=dict)
+    failed: list[dict] = field(default_factory=list)
+    """Frames that failed: {"run", "seed", "frame", "message"}; they are left out of the aggregates."""
+    counts: Summary = field(default_factory=Summary)
+    """Frames (over all runs) fitted, scored from their saved fit (skipped), failed."""
 
 
 def load_frames(
@@ -213,12 +224,15 @@ def _fit_and_save(
     """
     from cuboidcli.fitting.frame import make_result
     from cuboidcli.fitting.pipeline import fit_depth
+    from cuboidcli.folder import fitter_for
 
     depth_s = None
     if rgb:
         depth_m, depth_s = _estimated_depth(frame, depth_model)
     try:
-        cuboids, info = fit_depth(depth_m, frame.camera, config, weights_dir=weights_dir)
+        # The estimator of this configuration is built once per process (any seed: it is the fit's).
+        fitter = fitter_for(replace(config, seed=0), None if weights_dir is None else str(weights_dir), None)
+        cuboids, info = fit_depth(depth_m, frame.camera, config, solver=fitter.solver, sampler=fitter.sampler)
     except (ValueError, FileNotFoundError, ImportError) as e:  # bad settings, weights or input: one line
         raise InputError(f"frame {frame.name}: {e}") from e
     if depth_s is not None:
@@ -311,21 +325,50 @@ def _scoring_config(config: FitConfig, saved_settings: dict) -> FitConfig:
     return replace(config, **over) if over else config
 
 
-def _worker_init() -> None:
-    import torch
+def saved_fit_path(save_fits_dir: Path, seed: int, name: str) -> Path:
+    """Where ``--save-fits`` keeps a frame's fit: <dir>/seed<seed>/<frame>.json."""
+    return Path(save_fits_dir) / f"seed{seed}" / f"{name}.json"
 
-    torch.set_num_threads(1)  # N processes on N cores; results do not depend on it (see module docstring)
+
+def _reusable_fit(path: Path, config: FitConfig, weights_dir: Path | None) -> bool:
+    """A saved fit that a rerun may score instead of fitting: valid "cuboids/1", the same settings."""
+    from cuboidcli.fitting.frame import same_settings
+
+    try:
+        saved = read_result(path)
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    extra = {"weights": None if weights_dir is None else str(weights_dir)}
+    return isinstance(saved.settings, dict) and same_settings(saved.settings, config, extra)
 
 
-def _run_frames(frames: Sequence[EvalFrame], args: tuple, pool, on_done: Callable) -> None:
-    """Evaluate every frame, in-process or on ``pool``; ``on_done(index, metrics, n_done)`` as they finish."""
-    if pool is None:
-        for i, frame in enumerate(frames):
-            on_done(i, evaluate_frame(frame, *args), i + 1)
-        return
-    futures = {pool.submit(evaluate_frame, frame, *args): i for i, frame in enumerate(frames)}
-    for n, fut in enumerate(as_completed(futures), start=1):
-        on_done(futures[fut], fut.result(), n)
+def evaluate_task(
+    frame: EvalFrame,
+    config: FitConfig,
+    auc_cm: Sequence[float],
+    settings: EvalSettings,
+) -> Outcome:
+    """One frame of one run, as a task of :func:`cuboidcli.scaleout.run_tasks`: its metrics in ``value``;
+    "skipped" when it was scored from the fit a previous run saved; "failed" with the one-line reason."""
+    try:
+        if settings.save_fits_dir is not None and settings.skip_existing:
+            path = saved_fit_path(settings.save_fits_dir, config.seed, frame.name)
+            if _reusable_fit(path, config, settings.weights_dir):
+                m = evaluate_frame(frame, config, auc_cm, fits_dir=path.parent)
+                return Outcome(frame.name, "skipped", value=m)
+        m = evaluate_frame(
+            frame,
+            config,
+            auc_cm,
+            settings.save_fits_dir,
+            settings.fits_dir,
+            settings.weights_dir,
+            settings.rgb,
+            settings.depth_model,
+        )
+    except Exception as e:  # this frame fails; the evaluation goes on
+        return failed(frame.name, e)
+    return Outcome(frame.name, "done", value=m)
 
 
 def evaluate(
@@ -333,8 +376,13 @@ def evaluate(
     config: FitConfig,
     settings: EvalSettings,
     progress: Callable[[ProgressEvent], None] | None = None,
+    on_failed: Callable[[int, Outcome], None] | None = None,
 ) -> EvalReport:
-    """Evaluate ``frames`` once per seed; returns per-frame metrics, per-run aggregates and mean/std."""
+    """Evaluate ``frames`` once per seed; returns per-frame metrics, per-run aggregates and mean/std.
+
+    The frames of every run go to the engine together (``settings.workers``, ``settings.ray``).
+    ``on_failed(run, outcome)`` hears of each failed frame as it fails. Raises InputError when no frame
+    of a run could be evaluated."""
     if not frames:
         raise InputError("no frames to evaluate (check --split, --frames and --limit)")
     if settings.weights_dir is None:  # the shipped bundle that matches the input and the solver
@@ -346,37 +394,41 @@ def evaluate(
         check_estimator(config, settings.weights_dir)
     seeds = settings.seeds
     report = EvalReport(config=config, settings=settings, seeds=seeds, frames=[])
-    pool = None
-    if settings.workers > 1:
-        pool = ProcessPoolExecutor(
-            max_workers=settings.workers, mp_context=get_context("spawn"), initializer=_worker_init
-        )
-    try:
-        for r, seed in enumerate(seeds):
-            args = (
-                replace(config, seed=seed),
-                tuple(settings.auc_cm),
-                settings.save_fits_dir,
-                settings.fits_dir,
-                settings.weights_dir,
-                settings.rgb,
-                settings.depth_model,
-            )
-            results: dict[int, FrameMetrics] = {}
+    tasks = [
+        (frame, replace(config, seed=seed), tuple(settings.auc_cm), settings)
+        for seed in seeds
+        for frame in frames
+    ]
+    names = [f"{frame.name} (seed {seed})" for seed in seeds for frame in frames]
+    results: list[dict[int, FrameMetrics]] = [{} for _ in seeds]
+    failures: list[dict[int, str]] = [{} for _ in seeds]
 
-            def on_done(i: int, m: FrameMetrics, n_done: int, r=r, results=results) -> None:
-                results[i] = m
-                if progress is not None:
-                    running = aggregate(list(results.values()), curves=False)
-                    progress(ProgressEvent(r, len(seeds), n_done, len(frames), m.name, running))
+    def on_result(k: int, outcome: Outcome) -> None:
+        r, i = divmod(k, len(frames))
+        report.counts.add(outcome)
+        if outcome.status == "failed":
+            failures[r][i] = outcome.message
+            if on_failed is not None:
+                on_failed(r, outcome)
+        else:
+            results[r][i] = outcome.value
+        if progress is not None:
+            running = aggregate(list(results[r].values()), curves=False) if results[r] else {}
+            done = len(results[r]) + len(failures[r])
+            progress(ProgressEvent(r, len(seeds), done, len(frames), outcome.name, running))
 
-            _run_frames(frames, args, pool, on_done)
-            ordered = [results[i] for i in range(len(frames))]
-            report.frames.append(ordered)
-            report.runs.append(aggregate(ordered))
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
+    run_tasks(evaluate_task, tasks, names, workers=settings.workers, ray=settings.ray, on_result=on_result)
+    for r, seed in enumerate(seeds):
+        report.failed += [
+            {"run": r, "seed": seed, "frame": frames[i].name, "message": failures[r][i]}
+            for i in sorted(failures[r])
+        ]
+        ordered = [results[r][i] for i in range(len(frames)) if i in results[r]]
+        if not ordered:
+            first = report.failed[0]
+            raise InputError(f"no frame could be evaluated; {first['frame']}: {first['message']}")
+        report.frames.append(ordered)
+        report.runs.append(aggregate(ordered))
     report.summary = mean_std(report.runs)
     report.weights = weights_hashes(config, settings.weights_dir)
     return report

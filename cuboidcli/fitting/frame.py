@@ -43,7 +43,7 @@ def resolve_depth_scale(depth_scale: float | None, intr: Intrinsics, preset: str
 
 @dataclass(frozen=True)
 class DepthModelOptions:
-    """How to get depth from an RGB image when no depth map is given (issue 7's estimators)."""
+    """How to get depth from an RGB image when no depth map is given (:mod:`cuboidcli.depth`)."""
 
     model: str | None = None
     """None = the built-in network (models/depth_v3.pt); a .pt checkpoint or a user's .onnx model."""
@@ -166,3 +166,12 @@ def make_result(
         input=input_meta,
         extras=extras,
     )
+
+
+def same_settings(saved: dict, config: FitConfig, extra_settings: dict | None = None) -> bool:
+    """Whether a saved result's ``settings`` (as :func:`make_result` writes them) are those of ``config``
+    and ``extra_settings`` (the weights used): a rerun may then keep that result instead of fitting again."""
+    import json
+
+    wanted = {**json.loads(json.dumps(config.to_dict())), **(extra_settings or {})}
+    return all(saved.get(k) == v for k, v in wanted.items())

@@ -28,12 +28,13 @@ import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
+from cuboidcli.bundles import MODELS_DIR
 from cuboidcli.fitting.sampling import SamplingContext
 
 #: Versioned file name of the sampler weights inside a weights folder.
 WEIGHTS_NAME = "sampler_v2.pt"
-#: The shipped weights, relative to the repository root.
-DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / WEIGHTS_NAME
+#: The shipped weights, in the shipped models folder (:data:`cuboidcli.bundles.MODELS_DIR`).
+DEFAULT_WEIGHTS = MODELS_DIR / WEIGHTS_NAME
 
 
 #: Sampling priors the network's maps can be built on (see SamplerNetConfig.prior).

@@ -14,11 +14,12 @@ from pathlib import Path
 import torch
 from torch import Tensor
 
+from cuboidcli.bundles import MODELS_DIR
 from cuboidcli.learn.solver_net import SolverNet, net_from_checkpoint
 from cuboidcli.solvers.base import SizeBounds
 
-#: Versioned default weights, relative to the repository root.
-DEFAULT_WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "solver_v2.pt"
+#: Versioned default weights, in the shipped models folder (:data:`cuboidcli.bundles.MODELS_DIR`).
+DEFAULT_WEIGHTS = MODELS_DIR / "solver_v2.pt"
 
 #: Sets per forward chunk on the CPU: 512 x 6 points keep the activations (~1 MB per layer) in the cache,
 #: which made the 4096-set forward pass about 1.5x faster than one big batch.

@@ -121,7 +121,9 @@ class OnnxSolver:
         try:
             import onnxruntime as ort
         except ImportError as e:  # optional dependency
-            raise ImportError("the ONNX solver needs onnxruntime: pip install 'cuboids[onnx]'") from e
+            raise ImportError(
+                "the ONNX solver needs onnxruntime (a dependency of cuboids): pip install onnxruntime"
+            ) from e
         path = Path(onnx_path)
         if not path.is_file():
             raise FileNotFoundError(f"ONNX solver {path} not found; export one with export_solver_onnx()")

@@ -1,0 +1,97 @@
+"""Fitting every frame of a folder, resumably: what ``cuboids fit DIR`` runs on any engine of
+:mod:`cuboidcli.scaleout`.
+
+A frame's output is ``<out>/<stem>_cuboids.json`` plus the images and meshes asked for; the JSON is written
+last and atomically, so its presence means the frame is complete. A rerun skips frames whose JSON is a
+valid "cuboids/1" file fitted with the same settings (:func:`is_complete`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.scaleout import Outcome, failed
+
+
+@dataclass(frozen=True)
+class FolderJob:
+    """Everything but the input file: how to read a frame, fit it and write its outputs. Picklable: it is
+    sent to worker processes and Ray tasks, which build their :class:`~cuboidcli.api.Fitter` from it once."""
+
+    config: FitConfig
+    weights: str | None = None
+    onnx: str | None = None
+    intrinsics: str | None = None
+    preset: str | None = None
+    depth_scale: float | None = None
+    depth_model: object = None
+    """:class:`~cuboidcli.fitting.frame.DepthModelOptions` for RGB input (the depth comes from the image);
+    None for depth maps."""
+    glb: bool = False
+    ply: bool = False
+    overlay: bool = False
+    with_points: bool = False
+
+    def outputs(self, out_json: Path) -> list[Path]:
+        """The files a complete frame has, the JSON last (see :meth:`cuboidcli.api.Result.save`)."""
+        stem = out_json.with_name(out_json.name.removesuffix(".json"))
+        extra = []
+        if self.glb:
+            extra.append(Path(f"{stem}.glb"))
+        if self.ply:
+            extra += [Path(f"{stem}_points.ply"), Path(f"{stem}_cuboids.ply")]
+        if self.overlay:
+            extra += [Path(f"{stem}_{k}.png") for k in ("overlay", "labels", "labels_color", "panel")]
+        return [*extra, out_json]
+
+
+@lru_cache(maxsize=4)
+def fitter_for(config: FitConfig, weights: str | None, onnx: str | None):
+    """The Fitter of a configuration, built once per process (a worker fits many frames with it)."""
+    from cuboidcli.api import Fitter
+
+    return Fitter(config, weights=weights, onnx=onnx, device=config.device)
+
+
+def is_complete(out_json: Path, job: FolderJob) -> bool:
+    """The frame's outputs exist and its JSON is a valid "cuboids/1" result fitted with ``job``'s settings."""
+    from cuboidcli.fitting.frame import same_settings
+    from cuboidcli.io.result import read_result
+
+    if not all(p.is_file() for p in job.outputs(out_json)):
+        return False
+    try:
+        saved = read_result(out_json)
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    extra = {"weights": job.weights, "onnx": job.onnx}
+    return isinstance(saved.settings, dict) and same_settings(saved.settings, job.config, extra)
+
+
+def fit_file(job: FolderJob, source: str, out_json: str) -> Outcome:
+    """Fit one frame (``source``: a depth map, or an image with ``job.depth_model``) and write its outputs.
+    Returns the Outcome (failed with a one-line message for unusable input); ``value`` is
+    (cuboids, seconds, depth source)."""
+    import warnings
+
+    from cuboidcli.fitting.frame import load_frame
+
+    name = Path(source).name
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fitter = fitter_for(job.config, job.weights, job.onnx)
+            depth, image = (None, source) if job.depth_model is not None else (source, None)
+            frame = load_frame(
+                depth, image, job.intrinsics, job.preset, job.depth_scale, depth_model=job.depth_model
+            )
+            result = fitter.fit_frame(frame)
+            result.save(out_json, glb=job.glb, ply=job.ply, overlay=job.overlay, with_points=job.with_points)
+    except Exception as e:  # this frame fails; the run goes on
+        return failed(name, e)
+    notes = frame.notes + [str(w.message) for w in caught]
+    value = (len(result.cuboids), result.info.timing_s["total"], frame.meta["depth_source"])
+    return Outcome(name, "done", value=value, notes=notes)

@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# The wheel is the product: build it from this checkout, install it into a fresh virtual environment in a
+# temporary folder outside the checkout, and run the commands a new user runs first (`cuboids demo`, a fit
+# of a depth map with the learned sampler and the neural solver, the ONNX solver, and RGB-only input).
+# Usage: scripts/wheel_check.sh   (PYTHON=python3.11 to pick the interpreter; KEEP=1 keeps the folder)
+set -euo pipefail
+PYTHON="${PYTHON:-python3}"
+ROOT="$(cd "$(dirname "$0")/.." && pwd)"
+TMP="$(mktemp -d -t cuboids-wheel-XXXXXX)"
+if [ "${KEEP:-0}" = "1" ]; then echo "keeping $TMP"; else trap 'rm -rf "$TMP"' EXIT; fi
+SAMPLE="$ROOT/cuboidcli/data/sample"
+
+echo "== building the wheel"
+rm -rf "$ROOT/build"  # a stale build/lib would leak removed files into the wheel
+"$PYTHON" -m pip wheel "$ROOT" --no-deps -q -w "$TMP/dist"
+rm -rf "$ROOT/build"
+WHEEL="$(ls "$TMP"/dist/cuboids-*.whl)"
+echo "$(basename "$WHEEL"): $(du -h "$WHEEL" | cut -f1)"
+
+echo "== installing it into a fresh venv in $TMP"
+"$PYTHON" -m venv "$TMP/venv"
+# torch first, pinned: an unpinned torch would pull the CUDA build (several GB).
+"$TMP/venv/bin/pip" install -q "torch==2.13.0"
+"$TMP/venv/bin/pip" install -q "$WHEEL" "torch==2.13.0"
+
+cd "$TMP"  # outside the checkout: nothing may be read from it but the input files below
+unset CUBOIDS_MODELS CUBOIDS_SOLVER_WEIGHTS CUBOIDS_SAMPLER_WEIGHTS CUBOIDS_DEPTH_WEIGHTS  # the shipped weights
+run() { echo "\$ $*"; "$@"; }
+run venv/bin/python -c "import cuboidcli, sys; sys.exit('imported from the checkout' if '$ROOT' in cuboidcli.__file__ else 0)"
+run venv/bin/cuboids --version
+run venv/bin/cuboids demo -o demo
+test -s demo/sample_cuboids.json && test -s demo/sample_cuboids.glb
+cp "$SAMPLE/sample_depth.png" d.png
+cp "$SAMPLE/sample.png" rgb.png
+run venv/bin/cuboids fit --depth d.png --preset nyu --sampler learned --solver neural --hypotheses 512 -o n.json -q
+run venv/bin/cuboids export --onnx s.onnx
+run venv/bin/cuboids fit --depth d.png --preset nyu --solver onnx --onnx s.onnx --hypotheses 512 -o o.json -q
+run venv/bin/cuboids fit rgb.png -K 518.86,519.47,325.58,253.74 --hypotheses 512 -o r.json -q
+venv/bin/python - <<'PY'
+import json
+
+for name in ("n.json", "o.json", "r.json"):
+    d = json.load(open(name))
+    assert d["schema"] == "cuboids/1" and d["cuboids"], f"{name}: no cuboids"
+    print(f"{name}: {len(d['cuboids'])} cuboids ({d['settings']['sampler']}, {d['settings']['solver']})")
+PY
+echo "wheel check passed"
