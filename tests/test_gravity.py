@@ -135,7 +135,7 @@ def test_long_slabs_let_one_cuboid_span_a_wall_longer_than_two_a_max(nyu_camera)
     wall = Cuboid(np.array([0.0, 0.0, 3.0]), np.array([3.5, 1.2, 0.02]), rot)
     depth, _ = render_boxes([wall], nyu_camera)
     base = FitConfig(hypotheses=256, max_cuboids=1, local_fraction=1.0, seed=2)
-    short, _ = fit_depth(depth, nyu_camera, base)
+    short, _ = fit_depth(depth, nyu_camera, replace(base, slab_max_m=None))
     long_, _ = fit_depth(depth, nyu_camera, replace(base, slab_max_m=4.0))
     assert short[0].half_size.max() <= base.a_max + 1e-6
     assert long_[0].half_size.max() > base.a_max + 0.2
