@@ -1,7 +1,6 @@
 """End-to-end fine-tuning (cuboidcli.learn.finetune): gradients reach every network, runs write usable
 weights, resume continues, bad settings are refused. Tiny networks on a 4-frame RGB-D dataset."""
 
-
 import numpy as np
 import pytest
 import torch

@@ -269,10 +269,11 @@ def fit(
         if partial_depth is not None:
             fail("--partial-depth belongs to one image; it cannot align every image of a folder")
     with user_errors():
-        from cuboidcli.bundles import default_weights_dir
+        from cuboidcli.bundles import check_weights_option, default_weights_dir
         from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
         from cuboidcli.fitting.sampling import make_sampler
 
+        check_weights_option(weights, config.solver, config.sampler)
         if weights is None:  # the shipped bundle that matches the input and the solver
             weights = default_weights_dir(config.solver, rgb=depth is None, builtin_depth=depth_model is None)
         try:

@@ -337,8 +337,11 @@ def evaluate(
     """Evaluate ``frames`` once per seed; returns per-frame metrics, per-run aggregates and mean/std."""
     if not frames:
         raise InputError("no frames to evaluate (check --split, --frames and --limit)")
+    from cuboidcli.bundles import check_weights_option, default_weights_dir
+
+    if settings.fits_dir is None:
+        check_weights_option(settings.weights_dir, config.solver, config.sampler)
     if settings.weights_dir is None:  # the shipped bundle that matches the input and the solver
-        from cuboidcli.bundles import default_weights_dir
 
         bundle = default_weights_dir(config.solver, settings.rgb, settings.depth_model is None)
         settings = replace(settings, weights_dir=bundle)
