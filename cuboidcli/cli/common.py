@@ -37,9 +37,9 @@ def quiet_libraries() -> None:
     input buffer is incomplete" next to the tool's message about the file) and Python warnings raised in
     torch, numba and the other libraries. The tool reports what matters about the input itself."""
     os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")  # read when cv2 is first imported
-    if "cv2" in sys.modules:
-        cv2 = sys.modules["cv2"]
-        cv2.setLogLevel(0)  # 0 = silent
+    if "cv2" in sys.modules:  # already imported: the environment variable came too late
+        logging = sys.modules["cv2"].utils.logging
+        logging.setLogLevel(logging.LOG_LEVEL_SILENT)
     warnings.filterwarnings("ignore", module=LIBRARY_MODULES)
 
 
@@ -95,6 +95,23 @@ def user_errors():
                     console.print(
                         f"[yellow]warning:[/] {escape(str(w.message))}", highlight=False, soft_wrap=True
                     )
+
+
+@contextmanager
+def no_empty_folder(folder: Path):
+    """Remove ``folder`` again if it did not exist before the block, the block failed and left it empty
+    (a run refused before its first file must not leave an empty output folder behind)."""
+    existed = folder.exists()
+    ok = False
+    try:
+        yield
+        ok = True
+    except typer.Exit as e:
+        ok = e.exit_code == 0
+        raise
+    finally:
+        if not ok and not existed and folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
 
 
 def check_training_paths(data, resume, out) -> None:

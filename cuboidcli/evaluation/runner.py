@@ -342,7 +342,6 @@ def evaluate(
     if settings.fits_dir is None:
         check_weights_option(settings.weights_dir, config.solver, config.sampler)
     if settings.weights_dir is None:  # the shipped bundle that matches the input and the solver
-
         bundle = default_weights_dir(config.solver, settings.rgb, settings.depth_model is None)
         settings = replace(settings, weights_dir=bundle)
     if settings.fits_dir is None:

@@ -17,6 +17,7 @@ Every network of the tool (sampling-weight network, neural solver, depth network
 from __future__ import annotations
 
 import os
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import TypeVar
@@ -68,18 +69,20 @@ def read_checkpoint(path: str | os.PathLike, kind: str | None = None) -> dict:
     try:
         ckpt = torch.load(path, map_location="cpu", weights_only=True)
     except pickle.UnpicklingError as e:
-        if "weights only load failed" in str(e).lower() or "unsupported global" in str(e).lower():
+        refused = re.search(r"Unsupported global: GLOBAL (\S+)", str(e))
+        if refused:
             raise CheckpointError(
-                f"{what} {path} holds Python objects besides tensors; it was refused without running it "
-                f"(a weights file of ours holds only tensors): pass a file written by {_writer(kind)}"
+                f"{what} {path} holds a Python object ({refused.group(1)}) besides tensors; it was refused "
+                f"without running it (a weights file of ours holds only tensors): pass a file written by "
+                f"{_writer(kind)}"
             ) from e
         raise CheckpointError(
-            f"{what} {path} is not a PyTorch weights file ({_first_line(e)}); pass a file written by "
-            f"{_writer(kind)}"
+            f"cannot read {what} {path}: it is truncated or not a PyTorch file (the pickle is invalid); "
+            "download or train it again"
         ) from e
     except Exception as e:  # torch raises RuntimeError, OSError, EOFError, KeyError... for foreign bytes
         raise CheckpointError(
-            f"{what} {path} cannot be read: it is truncated or not a PyTorch file ({type(e).__name__}: "
+            f"cannot read {what} {path}: it is truncated or not a PyTorch file ({type(e).__name__}: "
             f"{_first_line(e)}); download or train it again"
         ) from e
     if not isinstance(ckpt, dict):
