@@ -68,30 +68,30 @@ def _numbers(v, n: int) -> bool:
 
 def _check_cuboid(c, where: str) -> None:
     if not isinstance(c, dict):
-        raise ValueError(f"field {where} must be an object with center, half_size and rotation")
+        raise ValueError(f"field '{where}' must be an object with center, half_size and rotation")
     for key in ("center", "half_size"):
         if key not in c:
-            raise ValueError(f"field {where}.{key} is missing")
+            raise ValueError(f"field '{where}.{key}' is missing")
         if not _numbers(c[key], 3):
-            raise ValueError(f"field {where}.{key} must be 3 finite numbers (got {c[key]!r:.60})")
+            raise ValueError(f"field '{where}.{key}' must be 3 finite numbers (got {c[key]!r:.60})")
     if any(a < 0 for a in c["half_size"]):
-        raise ValueError(f"field {where}.half_size must not be negative (got {c['half_size']})")
+        raise ValueError(f"field '{where}.half_size' must not be negative (got {c['half_size']})")
     if "rotation" in c:
         rot = c["rotation"]
         if not (isinstance(rot, list) and len(rot) == 3 and all(_numbers(row, 3) for row in rot)):
-            raise ValueError(f"field {where}.rotation must be a 3x3 list of finite numbers")
+            raise ValueError(f"field '{where}.rotation' must be a 3x3 list of finite numbers")
         r = np.asarray(rot, dtype=np.float64)
         if np.abs(r.T @ r - np.eye(3)).max() > 1e-3 or np.linalg.det(r) <= 0:
-            raise ValueError(f"field {where}.rotation is not a rotation matrix (orthonormal, determinant +1)")
+            raise ValueError(f"field '{where}.rotation' is not a rotation matrix (orthonormal, determinant +1)")
     elif "quat_wxyz" in c:
         q = c["quat_wxyz"]
         if not _numbers(q, 4) or math.hypot(*q) < 1e-6:
-            raise ValueError(f"field {where}.quat_wxyz must be 4 finite numbers, not all zero")
+            raise ValueError(f"field '{where}.quat_wxyz' must be 4 finite numbers, not all zero")
     else:
-        raise ValueError(f"field {where} has neither 'rotation' nor 'quat_wxyz'")
+        raise ValueError(f"field '{where}' has neither 'rotation' nor 'quat_wxyz'")
     gain = c.get("inlier_gain")
     if gain is not None and not _is_number(gain):
-        raise ValueError(f"field {where}.inlier_gain must be a number or null (got {gain!r:.40})")
+        raise ValueError(f"field '{where}.inlier_gain' must be a number or null (got {gain!r:.40})")
 
 
 def check_result_json(d) -> None:
@@ -124,7 +124,7 @@ def check_result_json(d) -> None:
     if not isinstance(d["cuboids"], list):
         raise ValueError("field 'cuboids' must be a list")
     for i, c in enumerate(d["cuboids"]):
-        _check_cuboid(c, f"'cuboids[{i}]'")
+        _check_cuboid(c, f"cuboids[{i}]")
     for key in ("settings", "timing_s", "input"):
         if key in d and not isinstance(d[key], dict):
             raise ValueError(f"field '{key}' must be an object (got {type(d[key]).__name__})")
