@@ -82,7 +82,7 @@ def _check_cuboid(c, where: str) -> None:
             raise ValueError(f"field '{where}.rotation' must be a 3x3 list of finite numbers")
         r = np.asarray(rot, dtype=np.float64)
         if np.abs(r.T @ r - np.eye(3)).max() > 1e-3 or np.linalg.det(r) <= 0:
-            raise ValueError(f"field '{where}.rotation' is not a rotation matrix (orthonormal, determinant +1)")
+            raise ValueError(f"field '{where}.rotation' is not a rotation matrix (orthonormal, det +1)")
     elif "quat_wxyz" in c:
         q = c["quat_wxyz"]
         if not _numbers(q, 4) or math.hypot(*q) < 1e-6:
