@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
@@ -305,6 +306,9 @@ def evaluate(
                 )
 
             report = run(frame_list, config, settings, progress=on_frame)
+        if not any(r["frames"] for r in report.runs):  # nothing scored: the input is unusable as given
+            others = len({f["frame"] for f in report.failures}) - 1
+            fail(report.failures[0]["error"] + (f" (and {others} more frames failed)" if others else ""))
         label = _method_label(config, applied, fits) + (" from RGB" if rgb else "")
         out.print(results_table(report, label))
         for table in (gt_table(report), objects_table(report), parsimony_table(report)):
@@ -314,7 +318,7 @@ def evaluate(
         if empty:
             console.print(
                 f"[yellow]warning:[/] {empty} fit(s) without any cuboid: their points count with "
-                "zero recall in AUC, the frames are left out of the OA means",
+                "zero recall, and in the OA means with their distance to the camera",
                 highlight=False,
             )
         if output is not None:
@@ -331,7 +335,19 @@ def evaluate(
             for p in write_outputs(report, output, meta):
                 out.print(f"wrote {p}")
             if save_fits:
-                out.print(f"wrote {len(frame_list) * n_runs} fits under {output / 'fits'}")
+                saved = len(frame_list) * n_runs - len(report.failures)
+                out.print(f"wrote {saved} fits under {output / 'fits'}")
+    if report.failures:
+        for f in report.failures:
+            run_note = f" (seed {f['seed']})" if n_runs > 1 else ""
+            console.print(f"[red]failed[/] {escape(f['error'])}{run_note}", highlight=False, soft_wrap=True)
+        failed = len({f["frame"] for f in report.failures})
+        fail(
+            f"{failed} of {len(frame_list)} frames could not be evaluated (listed above"
+            f"{' and in ' + str(output / 'metrics.json') if output is not None else ''}); the metrics are "
+            "over the other frames",
+            code=1,
+        )
 
 
 def register(app: typer.Typer) -> None:

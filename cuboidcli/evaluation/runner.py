@@ -101,6 +101,8 @@ class EvalReport:
     summary: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Mean and std over runs of every aggregate."""
     weights: dict[str, dict] = field(default_factory=dict)
+    failures: list[dict] = field(default_factory=list)
+    """Frames that could not be evaluated: {"run", "seed", "frame", "error"}; left out of the metrics."""
 
 
 def load_frames(
@@ -124,6 +126,7 @@ def load_frames(
         fmt = "nyu_depth_v2_labeled"
     else:
         frames = list_frames(data, split)
+        frames = sorted(frames + _missing_split_frames(Path(data), split, frames), key=lambda f: f.name)
         fmt = "folder"
     if names:
         by_name = {f.name: f for f in frames}
@@ -145,6 +148,17 @@ def load_frames(
         "split": split,
         "frames": [f.name for f in frames],
     }
+
+
+def _missing_split_frames(root: Path, split: str | None, frames: list) -> list[MissingFrame]:
+    """Frames that the split of ``splits.json`` names but the folder has no depth map for."""
+    import json
+
+    if split is None or not (root / "splits.json").is_file():
+        return []
+    have = {f.name for f in frames}
+    names = json.loads((root / "splits.json").read_text(encoding="utf-8")).get(split, [])
+    return [MissingFrame(str(n), root) for n in dict.fromkeys(names) if str(n) not in have]
 
 
 def check_estimator(config: FitConfig, weights_dir: Path | None = None) -> None:
@@ -311,6 +325,36 @@ def _scoring_config(config: FitConfig, saved_settings: dict) -> FitConfig:
     return replace(config, **over) if over else config
 
 
+@dataclass(frozen=True)
+class FrameFailure:
+    """A frame that could not be read or fitted (corrupt or missing files): its name, one-line reason."""
+
+    name: str
+    error: str
+
+
+@dataclass(frozen=True)
+class MissingFrame:
+    """A frame that ``splits.json`` lists but the dataset has no depth map for: evaluating it fails."""
+
+    name: str
+    root: Path
+    camera: None = None
+
+    def depth_m(self) -> np.ndarray:
+        raise InputError(f"frame {self.name} is listed in {self.root / 'splits.json'} but has no depth map")
+
+
+def evaluate_or_fail(frame: EvalFrame, *args) -> FrameMetrics | FrameFailure:
+    """:func:`evaluate_frame`, with a frame whose files are corrupt or missing reported, not raised: the
+    other frames are still scored. Internal errors propagate."""
+    try:
+        return evaluate_frame(frame, *args)
+    except (InputError, OSError) as e:
+        message = str(e) if frame.name in str(e) else f"frame {frame.name}: {e}"
+        return FrameFailure(frame.name, " ".join(message.split()))
+
+
 def _worker_init() -> None:
     import torch
 
@@ -321,9 +365,9 @@ def _run_frames(frames: Sequence[EvalFrame], args: tuple, pool, on_done: Callabl
     """Evaluate every frame, in-process or on ``pool``; ``on_done(index, metrics, n_done)`` as they finish."""
     if pool is None:
         for i, frame in enumerate(frames):
-            on_done(i, evaluate_frame(frame, *args), i + 1)
+            on_done(i, evaluate_or_fail(frame, *args), i + 1)
         return
-    futures = {pool.submit(evaluate_frame, frame, *args): i for i, frame in enumerate(frames)}
+    futures = {pool.submit(evaluate_or_fail, frame, *args): i for i, frame in enumerate(frames)}
     for n, fut in enumerate(as_completed(futures), start=1):
         on_done(futures[fut], fut.result(), n)
 
@@ -364,18 +408,21 @@ def evaluate(
                 settings.rgb,
                 settings.depth_model,
             )
-            results: dict[int, FrameMetrics] = {}
+            results: dict[int, FrameMetrics | FrameFailure] = {}
 
-            def on_done(i: int, m: FrameMetrics, n_done: int, r=r, results=results) -> None:
+            def on_done(i: int, m, n_done: int, r=r, results=results) -> None:
                 results[i] = m
                 if progress is not None:
-                    running = aggregate(list(results.values()), curves=False)
+                    scored = [x for x in results.values() if isinstance(x, FrameMetrics)]
+                    running = aggregate(scored, curves=False)
                     progress(ProgressEvent(r, len(seeds), n_done, len(frames), m.name, running))
 
             _run_frames(frames, args, pool, on_done)
             ordered = [results[i] for i in range(len(frames))]
-            report.frames.append(ordered)
-            report.runs.append(aggregate(ordered))
+            failed = [x for x in ordered if isinstance(x, FrameFailure)]
+            report.failures += [{"run": r, "seed": seed, "frame": f.name, "error": f.error} for f in failed]
+            report.frames.append([x for x in ordered if isinstance(x, FrameMetrics)])
+            report.runs.append({**aggregate(report.frames[-1]), "frames_failed": len(failed)})
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
