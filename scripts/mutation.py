@@ -64,7 +64,10 @@ TARGETS = (
         ("tests/test_metrics.py", "tests/test_eval_objects.py", "tests/test_evaluate_failures.py"),
     ),
     Target(
-        "scoring", "cuboidcli/fitting/scoring.py", None, ("tests/test_fused.py", "tests/test_pipeline.py")
+        "scoring",
+        "cuboidcli/fitting/scoring.py",
+        None,
+        ("tests/test_scoring.py", "tests/test_fused.py", "tests/test_pipeline.py"),
     ),
 )
 
