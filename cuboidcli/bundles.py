@@ -92,10 +92,6 @@ def default_depth_weights() -> Path:
     return MODELS_DIR / "depth_v3.pt"
 
 
-#: A config key that only each kind of checkpoint has.
-_KIND_KEYS = {"sampler": "maps", "solver": "heads", "depth": "channels"}
-
-
 def checkpoint_kind(path: str | os.PathLike) -> str | None:
     """ "sampler", "solver" or "depth" for a weights file of ours (by its config keys), else None.
 
@@ -108,16 +104,13 @@ def checkpoint_kind(path: str | os.PathLike) -> str | None:
 
 @lru_cache(maxsize=32)
 def _checkpoint_kind(path: str, size: int, mtime_ns: int) -> str | None:
-    import torch
+    from cuboidcli.io.checkpoints import CheckpointError, read_checkpoint
+    from cuboidcli.io.checkpoints import checkpoint_kind as kind_of
 
     try:
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception:  # not a torch file, or not loadable without pickle: not one of ours
+        return kind_of(read_checkpoint(path))
+    except CheckpointError:  # unreadable or refused: not one of ours (its loader says what is wrong)
         return None
-    config = ckpt.get("config") if isinstance(ckpt, dict) else None
-    if not isinstance(config, dict):
-        return None
-    return next((kind for kind, key in _KIND_KEYS.items() if key in config), None)
 
 
 def weights_for(kind: str, weights: str | os.PathLike | None) -> str | os.PathLike | None:
@@ -127,3 +120,33 @@ def weights_for(kind: str, weights: str | os.PathLike | None) -> str | os.PathLi
     if weights is None or Path(weights).is_dir() or not Path(weights).is_file():
         return weights
     return weights if checkpoint_kind(weights) in (kind, None) else None
+
+
+def networks_loaded(solver: str, sampler: str) -> list[str]:
+    """The kinds of network a configuration loads from ``--weights``."""
+    used = {"solver": solver == "neural", "sampler": sampler == "learned"}
+    return [kind for kind, loaded in used.items() if loaded]
+
+
+def check_weights_option(weights: str | os.PathLike | None, solver: str, sampler: str) -> None:
+    """Refuse a ``--weights`` value that no part of the run would load (it would be silently ignored):
+    any value when neither the neural solver nor the learned sampler runs, or a file of ours that holds
+    another network (a depth network, or the sampler with only ``--solver neural``). Raises
+    :class:`~cuboidcli.io.checkpoints.CheckpointError`."""
+    from cuboidcli.io.checkpoints import CheckpointError
+
+    if weights is None:
+        return
+    kinds = networks_loaded(solver, sampler)
+    if not kinds:
+        raise CheckpointError(
+            f"--weights {weights}: this run loads no network; --weights applies to --solver neural and "
+            "--sampler learned"
+        )
+    if Path(weights).is_file() and (found := checkpoint_kind(weights)) not in (*kinds, None):
+        flags = {"solver": "--solver neural", "sampler": "--sampler learned"}
+        raise CheckpointError(
+            f"--weights {weights} holds the {found} network, but this run loads the "
+            f"{' and '.join(kinds)} network ({', '.join(flags[k] for k in kinds)}); pass that file or a "
+            "folder that holds it"
+        )

@@ -222,7 +222,7 @@ def test_a_failed_frame_is_reported_and_left_out_of_the_metrics(app, tmp_path):
     assert "2 done, 0 skipped, 1 failed" in res.output
     doc = metrics_json(out)
     assert [r["frame"] for r in doc["frames"]] == ["f0", "f2"] and doc["runs"][0]["frames"] == 2
-    assert doc["failed"][0]["frame"] == "f1" and "cannot decode" in doc["failed"][0]["message"]
+    assert doc["failed_frames"][0]["frame"] == "f1" and "cannot decode" in doc["failed_frames"][0]["error"]
 
 
 def test_frame_selection_split_names_and_limit(folder):

@@ -199,7 +199,7 @@ def test_pooled_auc_statistics_equal_auc_of_all_points():
 # ---------------------------------------------------------------- aggregation
 
 
-def test_aggregate_pools_auc_and_skips_undefined_means():
+def test_aggregate_pools_auc_and_counts_empty_fits_in_the_oa_mean():
     cam = NYU.scaled(0.125)  # 80x60
     wall = Cuboid([0.0, 0.0, 3.05], [5.0, 5.0, 0.05], np.eye(3))
     depth = render_depth(cam, [wall])
@@ -208,11 +208,18 @@ def test_aggregate_pools_auc_and_skips_undefined_means():
     shifted = frame_metrics("b", depth, cam, [behind_wall], time_s=3.0)
     empty = frame_metrics("c", depth, cam, [], time_s=0.5)
     assert shifted.oa_all_m == pytest.approx(0.1, abs=1e-6)  # the wall is 10 cm in front of the box
-    assert math.isnan(empty.oa_all_m) and math.isnan(empty.oa_covered_m) and empty.coverage == 0.0
+    # no cuboid: each point is as far from the abstraction as from the camera; nothing is covered
+    u, v = np.meshgrid(np.arange(cam.width), np.arange(cam.height))
+    ray = np.sqrt(((u - cam.cx) / cam.fx) ** 2 + ((v - cam.cy) / cam.fy) ** 2 + 1.0)
+    to_camera = float((3.0 * ray).mean())  # the wall's face is the plane z = 3 m over the whole image
+    assert empty.oa_all_m == pytest.approx(to_camera, rel=1e-5) and to_camera > 3.0
+    assert math.isnan(empty.oa_covered_m) and empty.coverage == 0.0
     agg = aggregate([exact, shifted, empty])
     assert agg["time_s"] == pytest.approx(1.5)
     assert agg["cuboids"] == pytest.approx(2 / 3)
-    assert agg["oa_all_cm"] == pytest.approx(5.0, abs=1e-4)  # mean over the two frames with cuboids
+    # all three frames count in the OA mean; the covered mean skips the frame without covered points
+    assert agg["oa_all_cm"] == pytest.approx((0.0 + 10.0 + 100.0 * to_camera) / 3, abs=1e-3)
+    assert agg["oa_covered_cm"] == pytest.approx(5.0, abs=1e-4)
     assert agg["frames_without_cuboids"] == 1
     # pooled: a third of the points at 0 cm, a third at 10 cm, a third infinite
     assert agg["auc20cm_pct"] == pytest.approx(100 * (1 + 0.5) / 3, abs=0.01)

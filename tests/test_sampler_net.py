@@ -166,3 +166,57 @@ def test_prior_free_maps_ignore_the_state():
 def test_unknown_prior_is_an_error():
     with pytest.raises(ValueError, match="prior"):
         SamplerNetConfig(prior="sequential")
+
+
+def _constant_heads(net: SamplerNet, map_bias: list[float], q_bias: list[float]) -> SamplerNet:
+    """The net with its map and selection heads ignoring the features: known answers for every map."""
+    with torch.no_grad():
+        net.map_head.weight.zero_()
+        net.map_head.bias.copy_(torch.tensor(map_bias))
+        net.q_head.weight.zero_()
+        net.q_head.bias.copy_(torch.tensor(q_bias))
+    return net.eval()
+
+
+def test_constant_heads_give_uniform_maps_and_softmax_selection_weights():
+    net = _constant_heads(SamplerNet(TINY), [0.0, 5.0, -3.0, 1.0], [0.0, 1.0, 2.0, 3.0])
+    depth, state, valid = _random_inputs(b=1)
+    out = net(depth, state, valid)
+    n_valid = int(valid.sum())
+    # a map's bias shifts every logit equally: each map is uniform over the valid cells, whatever the bias
+    expected = torch.where(valid[:, None], 1.0 / n_valid, 0.0).expand_as(out.p)
+    torch.testing.assert_close(out.p, expected)
+    q = torch.exp(torch.arange(4.0)) / torch.exp(torch.arange(4.0)).sum()
+    torch.testing.assert_close(out.q[0], q)
+    torch.testing.assert_close(out.log_q[0], q.log())
+
+
+def test_unexplained_prior_weights_points_by_one_minus_their_state():
+    """prior "unexplained" with a constant map head: p(y) = max(1 - clip(s(y), 0, 1), floor) / sum, exactly
+    the sequential sampler's weights; occluded points (s < 0) weigh 1."""
+    cfg = SamplerNetConfig(width=16, blocks=1, upsample=1, prior="unexplained", prior_floor=0.01)
+    net = _constant_heads(SamplerNet(cfg), [0.0] * 4, [0.0] * 4)
+    state = torch.tensor([[[0.0, 0.25, 0.5, 1.0], [1.7, -0.5, -3.0, 0.999]]])
+    valid = torch.tensor([[[True, True, True, True], [True, True, False, True]]])
+    depth = torch.full((1, 2, 4), 2.0)
+    out = net(depth, state, valid)
+    weights = torch.tensor([[1.0, 0.75, 0.5, 0.01], [0.01, 1.0, 0.0, 0.01]])
+    expected = weights / weights.sum()
+    for j in range(4):
+        torch.testing.assert_close(out.p[0, j], expected, atol=1e-6, rtol=1e-5)
+    # the prior-free maps stay uniform over the valid cells
+    torch.testing.assert_close(out.log_p_free.exp()[0, 0], valid[0] / valid.sum(), atol=1e-6, rtol=0)
+
+
+def test_encoding_normalises_depth_clips_the_state_and_zeroes_invalid_cells():
+    cfg = SamplerNetConfig(width=16, blocks=1, upsample=2, depth_mean_m=3.0, depth_std_m=2.0, state_clip=1.0)
+    net = SamplerNet(cfg)
+    depth = torch.tensor([[[1.0, 3.0], [7.0, 4.0]]])
+    state = torch.tensor([[[-5.0, 0.5], [2.0, 0.3]]])
+    valid = torch.tensor([[[True, True], [True, False]]])
+    x = net.encode(depth, state, valid)
+    assert x.shape == (1, 2, 4, 4)
+    torch.testing.assert_close(x[0, 0, ::2, ::2], torch.tensor([[-1.0, 0.0], [2.0, 0.0]]))
+    torch.testing.assert_close(x[0, 1, ::2, ::2], torch.tensor([[-1.0, 0.5], [1.0, 0.0]]))
+    # nearest upsampling: each grid cell becomes a 2x2 block
+    torch.testing.assert_close(x[0, :, 1::2, 1::2], x[0, :, ::2, ::2])

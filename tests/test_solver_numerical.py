@@ -44,6 +44,39 @@ def test_pca_init_centres_the_bounding_box():
     assert torch.linalg.det(R).item() == pytest.approx(1.0)
 
 
+def test_pca_init_centres_the_bounding_box_of_a_rotated_set():
+    """A rotated, off-centre set whose principal axes are the box's axes: the box centre comes back only if
+    the PCA-frame offset is mapped back with V (not V^T, the research code's bug; here V != V^T)."""
+    local = torch.tensor(
+        [
+            [-1.0, -0.5, 0.0],
+            [1.0, -0.5, 0.0],
+            [1.0, 0.5, 0.0],
+            [-1.0, 0.5, 0.0],
+            [0.9, 0.0, 0.0],
+            [0.7, 0.0, 0.0],
+            [0.3, 0.0, 0.2],
+            [0.3, 0.0, -0.2],
+        ],
+        dtype=torch.float64,
+    )  # covariance diagonal in the box frame, mean off the box centre along x
+    rot = axis_angle_to_matrix(torch.tensor([0.4, -0.9, 0.6], dtype=torch.float64))
+    assert (rot - rot.T).abs().max() > 0.5  # far from symmetric
+    center = torch.tensor([0.3, -0.2, 3.0], dtype=torch.float64)
+    pts = (local @ rot.T + center)[None]
+    for solver_input in (pts, pts.float()):
+        c, a, R = pca_init(solver_input, SizeBounds())
+        tol = 1e-9 if solver_input.dtype == torch.float64 else 1e-5
+        torch.testing.assert_close(c[0].double(), center, atol=tol, rtol=0)
+        torch.testing.assert_close(
+            a[0].double(), torch.tensor([1.0, 0.5, 0.2], dtype=torch.float64), atol=tol, rtol=0
+        )
+        # the columns are the box axes up to sign, and R is a proper rotation
+        cos = (R[0].double().T @ rot).abs()
+        torch.testing.assert_close(cos, torch.eye(3, dtype=torch.float64), atol=1e-5, rtol=0)
+        assert torch.linalg.det(R[0].double()).item() == pytest.approx(1.0)
+
+
 def test_fused_gradient_equals_autograd():
     g = torch.Generator().manual_seed(0)
     solver = NumericalSolver(backend="torch")

@@ -1,27 +1,85 @@
-"""Shared console, error exit and option helpers for every subcommand."""
+"""Shared console, error exit and option helpers for every subcommand.
+
+Errors a user can act on end a command with one line on stderr and exit status 2 (:func:`fail`); an
+unexpected exception ends it with one line naming the file that holds its traceback and status 1
+(:func:`report_crash`; ``cuboids --debug`` shows the traceback instead). Warnings of the libraries
+(OpenCV, numba, torch) stay out of the normal output (:func:`quiet_libraries`); the tool's own input
+warnings are printed in yellow.
+"""
 
 from __future__ import annotations
 
+import os
+import sys
 import warnings
 from contextlib import contextmanager
+from pathlib import Path
 
 import typer
 from rich.console import Console
+from rich.markup import escape
 
 console = Console(stderr=True)
 out = Console()
 
+#: Library modules whose Python warnings are hidden unless ``--debug`` is given.
+LIBRARY_MODULES = r"(torch|numba|llvmlite|cv2|numpy|onnx|onnxruntime|open3d|trimesh|h5py|OpenEXR)(\.|$)"
+
 
 def fail(message: str, code: int = 2) -> None:
     """Print a one-line error and exit with ``code``."""
-    console.print(f"[bold red]error:[/] {message}", highlight=False, soft_wrap=True)
+    console.print(f"[bold red]error:[/] {escape(str(message))}", highlight=False, soft_wrap=True)
     raise typer.Exit(code)
+
+
+def quiet_libraries() -> None:
+    """Keep the libraries' own warnings out of the output: OpenCV's log lines ("[ WARN:0@1.5] ... PNG
+    input buffer is incomplete" next to the tool's message about the file) and Python warnings raised in
+    torch, numba and the other libraries. The tool reports what matters about the input itself."""
+    os.environ.setdefault("OPENCV_LOG_LEVEL", "SILENT")  # read when cv2 is first imported
+    if "cv2" in sys.modules:  # already imported: the environment variable came too late
+        logging = sys.modules["cv2"].utils.logging
+        logging.setLogLevel(logging.LOG_LEVEL_SILENT)
+    warnings.filterwarnings("ignore", module=LIBRARY_MODULES)
+
+
+def report_crash(exc: BaseException) -> Path | None:
+    """Save the traceback of an unexpected exception to a file and print one line naming it.
+
+    Returns the file (None when it could not be written; the line then says so)."""
+    import datetime
+    import tempfile
+    import traceback
+
+    from cuboidcli import __version__
+
+    stamp = datetime.datetime.now().strftime("%Y%m%d-%H%M%S")
+    text = (
+        f"cuboids {__version__}, python {sys.version.split()[0]}\n"
+        f"command: {' '.join(['cuboids', *sys.argv[1:]])}\n\n"
+        + "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+    )
+    path: Path | None = Path(tempfile.gettempdir()) / f"cuboids-crash-{stamp}-{os.getpid()}.txt"
+    try:
+        path.write_text(text, encoding="utf-8")
+        where = f"the traceback is in {path}"
+    except OSError:
+        path, where = None, "the traceback could not be saved"
+    summary = " ".join(str(exc).split())[:200] or "no message"
+    console.print(
+        f"[bold red]error:[/] internal error ({type(exc).__name__}: {escape(summary)}); this is a bug in "
+        f"cuboids: {where} (or run with 'cuboids --debug ...' to see it)",
+        highlight=False,
+        soft_wrap=True,
+    )
+    return path
 
 
 @contextmanager
 def user_errors():
-    """Turn library input errors into one-line messages with exit code 2; show warnings in yellow."""
-    from cuboidcli.io.depth import InputError
+    """Turn library input errors into one-line messages with exit code 2; show the tool's input warnings
+    in yellow (the libraries' own warnings are dropped, see :func:`quiet_libraries`)."""
+    from cuboidcli.io.depth import InputError, InputWarning
 
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -33,7 +91,27 @@ def user_errors():
             fail(str(e))
         finally:
             for w in caught:
-                console.print(f"[yellow]warning:[/] {w.message}", highlight=False, soft_wrap=True)
+                if issubclass(w.category, InputWarning):
+                    console.print(
+                        f"[yellow]warning:[/] {escape(str(w.message))}", highlight=False, soft_wrap=True
+                    )
+
+
+@contextmanager
+def no_empty_folder(folder: Path):
+    """Remove ``folder`` again if it did not exist before the block, the block failed and left it empty
+    (a run refused before its first file must not leave an empty output folder behind)."""
+    existed = folder.exists()
+    ok = False
+    try:
+        yield
+        ok = True
+    except typer.Exit as e:
+        ok = e.exit_code == 0
+        raise
+    finally:
+        if not ok and not existed and folder.is_dir() and not any(folder.iterdir()):
+            folder.rmdir()
 
 
 def check_training_paths(data, resume, out) -> None:

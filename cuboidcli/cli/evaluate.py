@@ -8,6 +8,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import typer
+from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
@@ -325,7 +326,9 @@ def evaluate(
 
             def on_failed(r: int, outcome) -> None:
                 seed = f" (seed {settings.seeds[r]})" if n_runs > 1 else ""
-                console.print(f"[red]failed[/] {outcome.name}{seed}: {outcome.message}", highlight=False)
+                console.print(
+                    f"[red]failed[/] {outcome.name}{seed}: {escape(outcome.message)}", highlight=False
+                )
 
             try:
                 report = run(frame_list, config, settings, progress=on_frame, on_failed=on_failed)
@@ -340,7 +343,7 @@ def evaluate(
         if empty:
             console.print(
                 f"[yellow]warning:[/] {empty} fit(s) without any cuboid: their points count with "
-                "zero recall in AUC, the frames are left out of the OA means",
+                "zero recall, and in the OA means with their distance to the camera",
                 highlight=False,
             )
         if output is not None:
@@ -355,7 +358,6 @@ def evaluate(
                 "depth_model": None if depth_model is None else str(depth_model.resolve()),
                 "frames_done": report.counts.done,
                 "frames_skipped": report.counts.skipped,
-                "failed": report.failed,
             }
             for p in write_outputs(report, output, meta):
                 out.print(f"wrote {p}")
@@ -366,8 +368,14 @@ def evaluate(
                 f"frames: {report.counts.line()} (skipped: scored from their saved fit; failed: left out "
                 "of the metrics)"
             )
-    if report.counts.failed:
-        raise typer.Exit(1)
+    if report.failures:
+        failed = len({f["frame"] for f in report.failures})
+        fail(
+            f"{failed} of {len(frame_list)} frames could not be evaluated (listed above"
+            f"{' and in ' + str(output / 'metrics.json') if output is not None else ''}); the metrics are "
+            "over the other frames",
+            code=1,
+        )
 
 
 def register(app: typer.Typer) -> None:

@@ -99,7 +99,7 @@ def _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scal
         try:
             result = read_result(result_json)
         except ValueError as e:
-            fail(f"{result_json}: {e}")
+            fail(f"{result_json}: {e}; give a cuboids/1 result written by cuboids fit")
         depth = depth if depth is not None else _input_file(result, "depth")
         image = image if image is not None else _input_file(result, "image")
         if (ply is not None or with_points) and depth is None:

@@ -320,8 +320,9 @@ def fit(
     if (ray_at is not None or workers > 1) and not folder_input:
         fail("--workers and --ray fit the frames of a folder: give a folder of depth maps or images")
     with user_errors():
-        from cuboidcli.bundles import default_weights_dir, shipped_path
+        from cuboidcli.bundles import check_weights_option, default_weights_dir, shipped_path
 
+        check_weights_option(weights, config.solver, config.sampler)
         if weights is None:  # the shipped bundle that matches the input and the solver
             weights = default_weights_dir(config.solver, rgb=depth is None, builtin_depth=depth_model is None)
         try:

@@ -5,9 +5,42 @@ from __future__ import annotations
 import os
 import sys
 
+import click
 import typer
+from typer.core import TyperGroup
 
 from cuboidcli import __version__
+from cuboidcli.cli.common import quiet_libraries, report_crash
+
+#: Set to 1 for the same effect as ``cuboids --debug``.
+DEBUG_ENV = "CUBOIDS_DEBUG"
+
+
+def _debug(ctx: click.Context) -> bool:
+    return bool(ctx.params.get("debug")) or os.environ.get(DEBUG_ENV, "") not in ("", "0")
+
+
+class CuboidsGroup(TyperGroup):
+    """The top-level command group: quiet libraries, and one line instead of a traceback for a bug.
+
+    Exceptions the commands raise on purpose (``typer.Exit`` after a one-line error, click's usage errors,
+    Ctrl-C) pass through; any other exception is an internal error: its traceback goes to a file
+    (:func:`report_crash`) and the command exits with status 1, unless ``--debug`` asks to see it.
+    """
+
+    def invoke(self, ctx: click.Context):
+        if not _debug(ctx):
+            quiet_libraries()
+        try:
+            return super().invoke(ctx)
+        except (typer.Exit, typer.Abort, click.exceptions.Exit, click.ClickException, click.Abort):
+            raise
+        except Exception as exc:
+            if _debug(ctx):
+                raise
+            report_crash(exc)
+            raise typer.Exit(1) from None
+
 
 app = typer.Typer(
     name="cuboids",
@@ -15,6 +48,7 @@ app = typer.Typer(
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
+    cls=CuboidsGroup,
 )
 
 
@@ -32,6 +66,12 @@ def _version(value: bool) -> None:
 def main(
     version: bool = typer.Option(
         False, "--version", callback=_version, is_eager=True, help="Print the version and the weights in use."
+    ),
+    debug: bool = typer.Option(
+        False,
+        "--debug",
+        help="Show the full traceback of an internal error and the libraries' warnings "
+        f"(or set {DEBUG_ENV}=1).",
     ),
 ) -> None:
     """cuboids: robust cuboid fitting for 3D scene abstraction."""

@@ -15,7 +15,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from cuboidcli.cli.common import console, fail, out, resolve_device
+from cuboidcli.cli.common import console, fail, no_empty_folder, out, resolve_device
 
 train_app = typer.Typer(help="Train the learned components (neural solver, ...).", no_args_is_help=True)
 
@@ -119,13 +119,16 @@ def solver(
     main_rank = launched_rank() == 0
     progress_bar = _progress()
     progress_bar.disable = not main_rank
-    with progress_bar as progress:
-        task = progress.add_task("solver", total=iters, status="")
+    with no_empty_folder(out_dir):
+        progress, task = progress_bar, None  # shown once training starts: a refused run prints its error only
 
         def on_event(record: dict) -> None:
+            nonlocal task
             kind = record["event"]
             if kind == "start":
-                progress.update(task, completed=record["iteration"], total=record["iters"])
+                progress.start()
+                task = progress.add_task("solver", total=record["iters"], status="")
+                progress.update(task, completed=record["iteration"])
                 console.print(f"solver net: {record['parameters']:,} parameters; logs in {out_dir}")
             elif kind == "train":
                 status = f"loss {record['loss_m2']:.2e} m² · {record['sets_per_s']:,.0f} sets/s"
@@ -141,6 +144,9 @@ def solver(
             final = train_solver(cfg, net_cfg, out_dir, resume=resume, on_event=on_event, backend=backend)
         except ValueError as e:
             fail(str(e))
+        finally:
+            if task is not None:
+                progress.stop()
     if not main_rank:
         return
     note = " (stopped by --max-minutes)" if final["timed_out"] else ""

@@ -11,7 +11,14 @@ from pathlib import Path
 
 import typer
 
-from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, user_errors
+from cuboidcli.cli.common import (
+    check_training_paths,
+    console,
+    fail,
+    no_empty_folder,
+    resolve_device,
+    user_errors,
+)
 
 _DEFAULTS_NOTE = "taken from the checkpoint with --resume"
 
@@ -29,13 +36,17 @@ class _EventPrinter:
     """Prints the trainer's records (``on_event`` of :func:`~cuboidcli.depth.train.train_depth`), one line
     each; remembers the run's length from the ``start`` record."""
 
-    def __init__(self) -> None:
+    def __init__(self, header: str = "") -> None:
+        self.header = header
+        """Printed with the ``start`` record (a run refused before it starts prints only its error)."""
         self.epochs = 0
         self.steps = 0
 
     def __call__(self, record: dict) -> None:
         kind = record.get("event")
         if kind == "start":
+            if self.header:
+                _say(self.header)
             self.epochs = record["epochs"]
             self.steps = record["epochs"] * record.get("steps_per_epoch", 0)
             where = f" on {record['device']}" if "device" in record else ""
@@ -163,10 +174,10 @@ def train_depth_cmd(
         if ignored:
             options = ", ".join("--" + name.replace("_", "-") for name in ignored)
             _say(f"warning: {options}: ignored with --resume (the checkpoint's values apply)", style="yellow")
-    _say(f"training the depth net on {data}; logs and checkpoints in {out}")
-    with user_errors():
+    printer = _EventPrinter(f"training the depth net on {data}; logs and checkpoints in {out}")
+    with user_errors(), no_empty_folder(out):
         try:
-            train_depth(data, out, cfg, resume=resume, on_event=_EventPrinter(), resume_overrides=overrides)
+            train_depth(data, out, cfg, resume=resume, on_event=printer, resume_overrides=overrides)
         except ValueError as e:
             fail(str(e))
         except KeyboardInterrupt:

@@ -10,7 +10,14 @@ from pathlib import Path
 
 import typer
 
-from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, user_errors
+from cuboidcli.cli.common import (
+    check_training_paths,
+    console,
+    fail,
+    no_empty_folder,
+    resolve_device,
+    user_errors,
+)
 
 
 def _print_event(record: dict) -> None:
@@ -136,7 +143,7 @@ def train_finetune_cmd(
         )
     except ValueError as e:
         fail(str(e))
-    with user_errors():
+    with user_errors(), no_empty_folder(out):
         try:
             finetune(
                 cfg,

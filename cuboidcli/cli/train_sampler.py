@@ -11,7 +11,14 @@ from pathlib import Path
 
 import typer
 
-from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, user_errors
+from cuboidcli.cli.common import (
+    check_training_paths,
+    console,
+    fail,
+    no_empty_folder,
+    resolve_device,
+    user_errors,
+)
 
 
 def _print_event(record: dict) -> None:
@@ -145,7 +152,7 @@ def train_sampler_cmd(
         net_cfg = SamplerNetConfig(width=width, blocks=blocks, upsample=upsample, prior=prior)
     except ValueError as e:
         fail(str(e))
-    with user_errors():
+    with user_errors(), no_empty_folder(out):
         try:
             train_sampler(
                 cfg, data, out, net_cfg=net_cfg, resume=resume, on_event=_print_event, backend=backend

@@ -118,8 +118,9 @@ class BuiltinDepthEstimator:
                     f"depth weights {self.path} not found; pass a .pt file written by the depth trainer "
                     "or an ONNX model with --depth-model"
                 )
-            ckpt = torch.load(self.path, map_location="cpu", weights_only=True)
-            net = net_from_checkpoint(ckpt)
+            from cuboidcli.io.checkpoints import load_net
+
+            net = load_net(self.path, "depth", net_from_checkpoint)
         self.net = net.to(self.device).eval()
 
     def focal_factor(self, camera: Camera) -> float:

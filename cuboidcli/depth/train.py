@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import pickle
 import time
 from collections.abc import Callable, Collection
 from dataclasses import asdict, dataclass, replace
@@ -107,11 +106,10 @@ RESUME_OVERRIDES = ("threads", "max_minutes", "log_every", "device")
 
 def load_train_state(path: str | Path) -> dict:
     """The training state of a ``last.pt``; ValueError when ``path`` holds something else."""
-    try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
-    except (RuntimeError, EOFError, pickle.UnpicklingError) as e:
-        raise ValueError(f"cannot read {path} as a training checkpoint: {e}") from e
-    if not isinstance(state, dict) or state.get("kind") != "depth-train-state":
+    from cuboidcli.io.checkpoints import read_checkpoint
+
+    state = read_checkpoint(path)
+    if state.get("kind") != "depth-train-state":
         raise ValueError(f"{path} is not a depth training checkpoint (use last.pt)")
     return state
 

@@ -28,10 +28,13 @@ Two further measurements (computed by ``cuboids evaluate``; optional arguments o
   eligible objects; precision = cuboids that explain an eligible object / predicted cuboids; both pooled
   over frames.
 
-Frames with no cuboid: every OA distance is infinite (there is no surface). Their points count in the
-pooled AUC with zero recall, and the frame is excluded from both OA means (reported instead as
-``frames_without_cuboids``) so that a single empty frame does not make the mean infinite. The paper's
-method always returned at least one cuboid, so its numbers are unaffected by this choice.
+Frames with no cuboid (counted in ``frames_without_cuboids``): there is no surface, so every point counts
+with zero recall, in the pooled AUC (its distance is infinite there) and in the object and ground-truth
+recalls. The frame is NOT dropped from the OA "all" mean, which would reward a method for giving up on hard
+frames: each point's OA distance is taken as its distance to the camera centre,
+finite and at least as large as the point's depth. Its coverage is 0, so the OA "covered" mean skips it
+like any frame without covered points (the paper's rule). The paper's method always returned at least one
+cuboid, so its numbers are unaffected by this choice.
 """
 
 from __future__ import annotations
@@ -285,14 +288,15 @@ def frame_metrics(
         prefix_cov.append(float(covered.mean()))
     cov_pts = covered[valid]
     n_cov = int(cov_pts.sum())
-    finite = bool(cuboids) and dist.size > 0
     auc_stats = {float(cm): AucStats.of(dist, cm / 100.0) for cm in auc_cm}
+    # OA means: without a cuboid, a point is as far from the abstraction as from the camera (docstring)
+    oa = dist if cuboids else np.linalg.norm(points, axis=1)
     m = FrameMetrics(
         name=name,
         cuboids=len(cuboids),
         coverage=float(covered.mean()),
-        oa_all_m=float(dist.mean()) if finite else math.nan,
-        oa_covered_m=float(dist[cov_pts].mean()) if finite and n_cov else math.nan,
+        oa_all_m=float(oa.mean()) if oa.size else math.nan,
+        oa_covered_m=float(oa[cov_pts].mean()) if n_cov else math.nan,
         n_points=int(dist.size),
         n_covered_points=n_cov,
         auc=auc_stats,

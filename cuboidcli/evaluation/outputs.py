@@ -100,6 +100,7 @@ def write_outputs(report: EvalReport, out_dir: str | os.PathLike, meta: dict | N
         "summary": {k: {"mean": m, "std": s} for k, (m, s) in report.summary.items()},
         "runs": report.runs,
         "frames": rows,
+        "failed_frames": report.failures,
         "weights_sha256": report.weights,
         "machine": machine_info(),
     }

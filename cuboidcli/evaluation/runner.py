@@ -108,8 +108,8 @@ class EvalReport:
     summary: dict[str, tuple[float, float]] = field(default_factory=dict)
     """Mean and std over runs of every aggregate."""
     weights: dict[str, dict] = field(default_factory=dict)
-    failed: list[dict] = field(default_factory=list)
-    """Frames that failed: {"run", "seed", "frame", "message"}; they are left out of the aggregates."""
+    failures: list[dict] = field(default_factory=list)
+    """Frames that could not be evaluated: {"run", "seed", "frame", "error"}; left out of the metrics."""
     counts: Summary = field(default_factory=Summary)
     """Frames (over all runs) fitted, scored from their saved fit (skipped), failed."""
 
@@ -135,6 +135,7 @@ def load_frames(
         fmt = "nyu_depth_v2_labeled"
     else:
         frames = list_frames(data, split)
+        frames = sorted(frames + _missing_split_frames(Path(data), split, frames), key=lambda f: f.name)
         fmt = "folder"
     if names:
         by_name = {f.name: f for f in frames}
@@ -156,6 +157,17 @@ def load_frames(
         "split": split,
         "frames": [f.name for f in frames],
     }
+
+
+def _missing_split_frames(root: Path, split: str | None, frames: list) -> list[MissingFrame]:
+    """Frames that the split of ``splits.json`` names but the folder has no depth map for."""
+    import json
+
+    if split is None or not (root / "splits.json").is_file():
+        return []
+    have = {f.name for f in frames}
+    names = json.loads((root / "splits.json").read_text(encoding="utf-8")).get(split, [])
+    return [MissingFrame(str(n), root) for n in dict.fromkeys(names) if str(n) not in have]
 
 
 def check_estimator(config: FitConfig, weights_dir: Path | None = None) -> None:
@@ -371,6 +383,18 @@ def evaluate_task(
     return Outcome(frame.name, "done", value=m)
 
 
+@dataclass(frozen=True)
+class MissingFrame:
+    """A frame that ``splits.json`` lists but the dataset has no depth map for: evaluating it fails."""
+
+    name: str
+    root: Path
+    camera: None = None
+
+    def depth_m(self) -> np.ndarray:
+        raise InputError(f"frame {self.name} is listed in {self.root / 'splits.json'} but has no depth map")
+
+
 def evaluate(
     frames: Sequence[EvalFrame],
     config: FitConfig,
@@ -385,9 +409,11 @@ def evaluate(
     of a run could be evaluated."""
     if not frames:
         raise InputError("no frames to evaluate (check --split, --frames and --limit)")
-    if settings.weights_dir is None:  # the shipped bundle that matches the input and the solver
-        from cuboidcli.bundles import default_weights_dir
+    from cuboidcli.bundles import check_weights_option, default_weights_dir
 
+    if settings.fits_dir is None:
+        check_weights_option(settings.weights_dir, config.solver, config.sampler)
+    if settings.weights_dir is None:  # the shipped bundle that matches the input and the solver
         bundle = default_weights_dir(config.solver, settings.rgb, settings.depth_model is None)
         settings = replace(settings, weights_dir=bundle)
     if settings.fits_dir is None:
@@ -419,16 +445,17 @@ def evaluate(
 
     run_tasks(evaluate_task, tasks, names, workers=settings.workers, ray=settings.ray, on_result=on_result)
     for r, seed in enumerate(seeds):
-        report.failed += [
-            {"run": r, "seed": seed, "frame": frames[i].name, "message": failures[r][i]}
+        report.failures += [
+            {"run": r, "seed": seed, "frame": frames[i].name, "error": failures[r][i]}
             for i in sorted(failures[r])
         ]
         ordered = [results[r][i] for i in range(len(frames)) if i in results[r]]
         if not ordered:
-            first = report.failed[0]
-            raise InputError(f"no frame could be evaluated; {first['frame']}: {first['message']}")
+            first = report.failures[0]
+            others = len({f["frame"] for f in report.failures}) - 1
+            raise InputError(first["error"] + (f" (and {others} more frames failed)" if others else ""))
         report.frames.append(ordered)
-        report.runs.append(aggregate(ordered))
+        report.runs.append({**aggregate(ordered), "frames_failed": len(failures[r])})
     report.summary = mean_std(report.runs)
     report.weights = weights_hashes(config, settings.weights_dir)
     return report

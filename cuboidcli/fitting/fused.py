@@ -294,9 +294,7 @@ def _values(points, centers, half, rot, beta, inv_tau, tau_c, slope, offset, cut
     n = points.shape[0]
     cams = np.empty((centers.shape[0], 3))
     for h in range(centers.shape[0]):
-        cams[h, 0], cams[h, 1], cams[h, 2] = camera_local(
-            centers[h, 0], centers[h, 1], centers[h, 2], rot[h]
-        )
+        cams[h, 0], cams[h, 1], cams[h, 2] = camera_local(centers[h, 0], centers[h, 1], centers[h, 2], rot[h])
     for i in prange(n):
         for h in range(centers.shape[0]):
             R = rot[h]

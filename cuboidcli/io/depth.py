@@ -8,8 +8,10 @@ missing. Every problem raises :class:`InputError` with a one-line message.
 from __future__ import annotations
 
 import json
+import math
 import os
 import warnings
+import zipfile
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,6 +43,18 @@ class Intrinsics:
 
     def camera(self, width: int, height: int) -> Camera:
         return Camera(self.fx, self.fy, self.cx, self.cy, int(width), int(height))
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split()) or type(exc).__name__
+
+
+def _finite(intr: Intrinsics, what: str) -> Intrinsics:
+    values = {"fx": intr.fx, "fy": intr.fy, "cx": intr.cx, "cy": intr.cy}
+    bad = [k for k, v in values.items() if not math.isfinite(v)]
+    if bad:
+        raise InputError(f"{what}: {bad[0]} = {values[bad[0]]} is not a finite number of pixels")
+    return intr
 
 
 def _imread_unchanged(path: Path) -> np.ndarray:
@@ -96,8 +110,8 @@ def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarra
             depth = _imread_unchanged(path)
     except InputError:
         raise
-    except (ValueError, OSError) as e:
-        raise InputError(f"cannot read depth file {path}: {e}") from e
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as e:  # truncated or not this format
+        raise InputError(f"cannot read depth file {path}: {_one_line(e)}") from e
     if depth.ndim == 3:
         if depth.shape[2] == 1:
             depth = depth[..., 0]
@@ -184,7 +198,7 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
                     f"...); none is named {frame!r}"
                 )
         try:
-            return Intrinsics(
+            intr = Intrinsics(
                 float(d["fx"]),
                 float(d["fy"]),
                 float(d["cx"]),
@@ -194,10 +208,11 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
                 float(d["depth_scale"]) if "depth_scale" in d else None,
                 source=str(path),
             )
-        except (KeyError, TypeError, ValueError) as e:
+        except (KeyError, TypeError, ValueError, OverflowError) as e:
             raise InputError(
                 f"intrinsics file {path} must hold numbers fx, fy, cx, cy (missing or bad: {e})"
             ) from e
+        return _finite(intr, f"intrinsics file {path}")
     parts = spec.replace(" ", "").split(",")
     if len(parts) != 4:
         raise InputError(
@@ -207,7 +222,7 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
         fx, fy, cx, cy = (float(p) for p in parts)
     except ValueError as e:
         raise InputError(f"--intrinsics {spec!r}: fx,fy,cx,cy must be numbers") from e
-    return Intrinsics(fx, fy, cx, cy, source="command line")
+    return _finite(Intrinsics(fx, fy, cx, cy, source="command line"), f"--intrinsics {spec!r}")
 
 
 def check_inputs(

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from cuboidcli import __version__
 from cuboidcli.camera import Camera
@@ -42,10 +45,8 @@ class FitResult:
 
     @classmethod
     def from_json(cls, d: dict) -> FitResult:
-        if d.get("schema") != SCHEMA:
-            raise ValueError(f"not a {SCHEMA} file (schema is {d.get('schema')!r})")
-        if d.get("frame", "opencv") != "opencv":
-            raise ValueError(f"unsupported frame {d.get('frame')!r}; expected 'opencv'")
+        """Build from a parsed "cuboids/1" document; ValueError naming the first field that is wrong."""
+        check_result_json(d)
         known = {"schema", "version", "camera", "frame", "cuboids", "settings", "timing_s", "input"}
         return cls(
             camera=Camera.from_dict(d["camera"]),
@@ -55,6 +56,78 @@ class FitResult:
             input=d.get("input", {}),
             extras={k: v for k, v in d.items() if k not in known},
         )
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, int | float) and not isinstance(v, bool) and math.isfinite(v)
+
+
+def _numbers(v, n: int) -> bool:
+    return isinstance(v, list) and len(v) == n and all(_is_number(x) for x in v)
+
+
+def _check_cuboid(c, where: str) -> None:
+    if not isinstance(c, dict):
+        raise ValueError(f"field '{where}' must be an object with center, half_size and rotation")
+    for key in ("center", "half_size"):
+        if key not in c:
+            raise ValueError(f"field '{where}.{key}' is missing")
+        if not _numbers(c[key], 3):
+            raise ValueError(f"field '{where}.{key}' must be 3 finite numbers (got {c[key]!r:.60})")
+    if any(a < 0 for a in c["half_size"]):
+        raise ValueError(f"field '{where}.half_size' must not be negative (got {c['half_size']})")
+    if "rotation" in c:
+        rot = c["rotation"]
+        if not (isinstance(rot, list) and len(rot) == 3 and all(_numbers(row, 3) for row in rot)):
+            raise ValueError(f"field '{where}.rotation' must be a 3x3 list of finite numbers")
+        r = np.asarray(rot, dtype=np.float64)
+        if np.abs(r.T @ r - np.eye(3)).max() > 1e-3 or np.linalg.det(r) <= 0:
+            raise ValueError(f"field '{where}.rotation' is not a rotation matrix (orthonormal, det +1)")
+    elif "quat_wxyz" in c:
+        q = c["quat_wxyz"]
+        if not _numbers(q, 4) or math.hypot(*q) < 1e-6:
+            raise ValueError(f"field '{where}.quat_wxyz' must be 4 finite numbers, not all zero")
+    else:
+        raise ValueError(f"field '{where}' has neither 'rotation' nor 'quat_wxyz'")
+    gain = c.get("inlier_gain")
+    if gain is not None and not _is_number(gain):
+        raise ValueError(f"field '{where}.inlier_gain' must be a number or null (got {gain!r:.40})")
+
+
+def check_result_json(d) -> None:
+    """Check a parsed document against the "cuboids/1" schema (README, "Output"); ValueError naming the
+    first offending field, e.g. ``field 'cuboids[2].half_size' must be 3 finite numbers``."""
+    if not isinstance(d, dict):
+        raise ValueError(f"not a {SCHEMA} file: it holds a JSON {type(d).__name__}, not an object")
+    if d.get("schema") != SCHEMA:
+        raise ValueError(f"not a {SCHEMA} file (field 'schema' is {d.get('schema')!r})")
+    if d.get("frame", "opencv") != "opencv":
+        raise ValueError(f"unsupported frame {d.get('frame')!r} (field 'frame'); expected 'opencv'")
+    cam = d.get("camera")
+    if cam is None:
+        raise ValueError("field 'camera' is missing (fx, fy, cx, cy, width, height)")
+    if not isinstance(cam, dict):
+        raise ValueError("field 'camera' must be an object with fx, fy, cx, cy, width, height")
+    for key in ("fx", "fy", "cx", "cy", "width", "height"):
+        if key not in cam:
+            raise ValueError(f"field 'camera.{key}' is missing")
+        if not _is_number(cam[key]):
+            raise ValueError(f"field 'camera.{key}' must be a finite number (got {cam[key]!r:.40})")
+    for key in ("fx", "fy", "width", "height"):
+        if cam[key] <= 0:
+            raise ValueError(f"field 'camera.{key}' must be positive (got {cam[key]})")
+    for key in ("width", "height"):
+        if cam[key] != int(cam[key]):
+            raise ValueError(f"field 'camera.{key}' must be a whole number of pixels (got {cam[key]})")
+    if "cuboids" not in d:
+        raise ValueError("field 'cuboids' is missing (a list, empty when nothing was fitted)")
+    if not isinstance(d["cuboids"], list):
+        raise ValueError("field 'cuboids' must be a list")
+    for i, c in enumerate(d["cuboids"]):
+        _check_cuboid(c, f"cuboids[{i}]")
+    for key in ("settings", "timing_s", "input"):
+        if key in d and not isinstance(d[key], dict):
+            raise ValueError(f"field '{key}' must be an object (got {type(d[key]).__name__})")
 
 
 def write_result(path: str | os.PathLike, result: FitResult) -> Path:

@@ -73,6 +73,7 @@ from cuboidcli.fitting.pipeline import fit_depth, prepare_points
 from cuboidcli.fitting.sampling import draw_sets_and_maps
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
+from cuboidcli.io.checkpoints import load_net, read_checkpoint
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.sampler_data import dataset_splits, epoch_order
@@ -265,7 +266,7 @@ def load_nets(cfg: FinetuneConfig, sampler_weights=None, solver_weights=None, de
     path = sampler_weights_path(sampler_weights)
     if not path.is_file():
         raise FileNotFoundError(f"sampler weights {path} not found; train them with 'cuboids train sampler'")
-    sampler = sampler_from_checkpoint(torch.load(path, map_location="cpu", weights_only=True))
+    sampler = load_net(path, "sampler", sampler_from_checkpoint)
     solver = load_solver_net(solver_weights, "cpu") if cfg.solver == "neural" else None
     depth = None
     if cfg.rgb:
@@ -275,7 +276,7 @@ def load_nets(cfg: FinetuneConfig, sampler_weights=None, solver_weights=None, de
         dpath = Path(depth_weights) if depth_weights is not None else default_weights_path()
         if not dpath.is_file():
             raise FileNotFoundError(f"depth weights {dpath} not found; train them with 'cuboids train depth'")
-        depth = net_from_checkpoint(torch.load(dpath, map_location="cpu", weights_only=True))
+        depth = load_net(dpath, "depth", net_from_checkpoint)
     return Nets(sampler, solver, depth)
 
 
@@ -442,8 +443,8 @@ def finetune(
     fit = fit or FitConfig()
     state = None
     if resume is not None:
-        state = torch.load(resume, map_location="cpu", weights_only=True)
-        if not isinstance(state, dict) or state.get("kind") != STATE_KIND:
+        state = read_checkpoint(resume)
+        if state.get("kind") != STATE_KIND:
             raise ValueError(f"{resume} is not a fine-tuning checkpoint (give OUT/last.pt)")
         keep = {k: getattr(cfg, k) for k in ("epochs", "threads", "device", "max_minutes", "workers")}
         cfg = replace(FinetuneConfig(**state["config"]), **keep)

@@ -254,8 +254,9 @@ class LearnedSampler:
                 f"sampler weights {path} not found; train them with 'cuboids train sampler DATA' and pass "
                 "their folder with --weights, or use --sampler sequential"
             )
-        ckpt = torch.load(path, map_location="cpu", weights_only=True)
-        return cls(net_from_checkpoint(ckpt), device)
+        from cuboidcli.io.checkpoints import load_net
+
+        return cls(load_net(path, "sampler", net_from_checkpoint), device)
 
     def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
         depth, state, valid = (t.to(self.device) for t in grid_inputs(ctx))

@@ -57,6 +57,7 @@ from cuboidcli.fitting.pipeline import PreparedPoints, fit_depth
 from cuboidcli.fitting.sampling import SamplingContext
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
+from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
@@ -271,8 +272,8 @@ def validate(
 
 
 def _load_state(path: str | Path) -> dict:
-    state = torch.load(path, map_location="cpu", weights_only=True)
-    if not isinstance(state, dict) or state.get("kind") != STATE_KIND:
+    state = read_checkpoint(path)
+    if state.get("kind") != STATE_KIND:
         raise ValueError(f"{path} is not a sampler training checkpoint (use last.pt or epoch_*.pt)")
     return state
 

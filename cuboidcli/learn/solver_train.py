@@ -33,6 +33,7 @@ from torch import Tensor
 
 from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
+from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.solver_data import SyntheticBatch, SyntheticConfig, seeded_batch
 from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict, parameter_count
@@ -203,8 +204,8 @@ def _train(
     emit = (on_event if ctx.is_main else None) or (lambda record: None)
     state = None
     if resume is not None:
-        state = torch.load(resume, map_location="cpu", weights_only=True)
-        if not isinstance(state, dict) or state.get("kind") != "solver-train-state":
+        state = read_checkpoint(resume)
+        if state.get("kind") != "solver-train-state":
             raise ValueError(f"{resume} is not a training checkpoint (use last.pt or step_*.pt)")
         keep = ("threads", "device", "max_minutes", "log_every", "val_every", "ckpt_every", "keep_snapshots")
         cfg = replace(SolverTrainConfig(**state["train_config"]), **{k: getattr(cfg, k) for k in keep})
@@ -388,7 +389,7 @@ def compare_on_validation(weights: str | Path | None = None, n_sets: int = 4096,
 
     path = Path(weights) if weights is not None else default_weights_path()
     neural = NeuralSolver(path)
-    meta = torch.load(path, map_location="cpu", weights_only=True).get("meta", {})
+    meta = read_checkpoint(path, "solver").get("meta", {})
     data = SyntheticConfig(**meta["data_config"]) if "data_config" in meta else SyntheticConfig()
     val = validation_sets(n_sets, data)
     solvers = {

@@ -15,6 +15,7 @@ import torch
 from torch import Tensor
 
 from cuboidcli.bundles import MODELS_DIR
+from cuboidcli.io.checkpoints import load_net
 from cuboidcli.learn.solver_net import SolverNet, net_from_checkpoint
 from cuboidcli.solvers.base import SizeBounds
 
@@ -50,8 +51,8 @@ def load_solver_net(path: str | os.PathLike | None = None, device: str | torch.d
         raise FileNotFoundError(
             f"solver weights {path} not found; pass a .pt file written by 'cuboids train solver'"
         )
-    ckpt = torch.load(path, map_location="cpu", weights_only=True)
-    return net_from_checkpoint(ckpt).to(device=device, dtype=torch.float32).eval()
+    net = load_net(path, "solver", net_from_checkpoint)
+    return net.to(device=device, dtype=torch.float32).eval()
 
 
 def check_bounds(bounds: SizeBounds | None, a_min: float, a_max: float) -> SizeBounds:

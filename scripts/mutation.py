@@ -1,0 +1,374 @@
+"""Mutation testing of the core numerics: does the test suite notice when the code is wrong?
+
+A small AST mutator (no third-party tool): each mutant changes ONE operator, comparison, constant or
+min/max-like call in a target (see TARGETS), and the tests chosen for that target run against it. A mutant
+is *killed* when a test fails (or the run times out), and *survives* when every test passes. The score is
+killed / all. Survivors are listed with their line so that each is either killed by a new test or
+explained as equivalent (docs/mutation.md).
+
+The work happens in a throw-away copy of the repository (the working tree is never modified), one mutant
+at a time, each test run with ``pytest -x`` in a worker process that reloads the package and the tests for
+every mutant (torch and numba stay loaded; a timeout or a crash restarts it). Not part of CI: run it with
+``scripts/mutation.sh``.
+
+    python scripts/mutation.py [--only kernels,metrics] [--timeout 120] [--list]
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import os
+import queue
+import shutil
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@dataclass(frozen=True)
+class Target:
+    name: str
+    path: str
+    """File to mutate, relative to the repository root."""
+    functions: tuple[str, ...] | None
+    """Only the bodies of these top-level functions / methods (None: the whole module)."""
+    tests: tuple[str, ...]
+    """pytest arguments that should kill its mutants, fastest first."""
+
+
+TARGETS = (
+    Target(
+        "kernels",
+        "cuboidcli/geometry/kernels.py",
+        None,
+        (
+            "tests/test_kernels.py",
+            "tests/test_paper_defaults.py",
+            "tests/test_properties.py",
+            "tests/test_fused.py",
+        ),
+    ),
+    Target("pca_init", "cuboidcli/solvers/numerical.py", ("pca_init",), ("tests/test_solver_numerical.py",)),
+    Target(
+        "metrics",
+        "cuboidcli/evaluation/metrics.py",
+        None,
+        ("tests/test_metrics.py", "tests/test_eval_objects.py", "tests/test_evaluate_failures.py"),
+    ),
+    Target(
+        "scoring",
+        "cuboidcli/fitting/scoring.py",
+        None,
+        ("tests/test_scoring.py", "tests/test_fused.py", "tests/test_pipeline.py"),
+    ),
+)
+
+#: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.
+BINOPS = {
+    ast.Add: ast.Sub,
+    ast.Sub: ast.Add,
+    ast.Mult: ast.Div,
+    ast.Div: ast.Mult,
+    ast.FloorDiv: ast.Div,
+    ast.Pow: ast.Mult,
+    ast.Mod: ast.FloorDiv,
+    ast.MatMult: ast.Mult,
+}
+CMPOPS = {
+    ast.Lt: ast.LtE,
+    ast.LtE: ast.Lt,
+    ast.Gt: ast.GtE,
+    ast.GtE: ast.Gt,
+    ast.Eq: ast.NotEq,
+    ast.NotEq: ast.Eq,
+    ast.Is: ast.IsNot,
+    ast.IsNot: ast.Is,
+    ast.In: ast.NotIn,
+    ast.NotIn: ast.In,
+}
+#: Calls and attributes whose meaning flips with a sibling's.
+NAMES = {
+    "min": "max",
+    "max": "min",
+    "amin": "amax",
+    "amax": "amin",
+    "minimum": "maximum",
+    "maximum": "minimum",
+    "clamp_min": "clamp_max",
+    "clamp_max": "clamp_min",
+    "argmax": "argmin",
+    "argmin": "argmax",
+    "any": "all",
+    "all": "any",
+    "sum": "mean",
+    "mean": "sum",
+    "abs": "square",
+    "sqrt": "square",
+    "square": "abs",
+}
+
+
+@dataclass(frozen=True)
+class Mutant:
+    target: str
+    index: int
+    """Position of the mutated node in ``ast.walk`` order of the module."""
+    line: int
+    description: str
+
+
+def _ranges(tree: ast.Module, functions: tuple[str, ...] | None) -> list[tuple[int, int]]:
+    if functions is None:
+        return [(1, 10**9)]
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef) and node.name in functions:
+            out.append((node.lineno, node.end_lineno or node.lineno))
+    if not out:
+        raise SystemExit(f"none of the functions {functions} found")
+    return out
+
+
+def _skipped_lines(tree: ast.Module) -> set[int]:
+    """Lines not worth mutating: docstrings, imports, annotations, raise statements (their messages)."""
+    skip: set[int] = set()
+    for node in ast.walk(tree):
+        body = getattr(node, "body", None)
+        if isinstance(body, list) and body and isinstance(body[0], ast.Expr):
+            value = body[0].value
+            if isinstance(value, ast.Constant) and isinstance(value.value, str):
+                skip.update(range(body[0].lineno, (body[0].end_lineno or body[0].lineno) + 1))
+        if isinstance(node, ast.Import | ast.ImportFrom | ast.Raise):
+            skip.update(range(node.lineno, (node.end_lineno or node.lineno) + 1))
+    return skip
+
+
+def _annotation_nodes(tree: ast.Module) -> set[int]:
+    ids: set[int] = set()
+    for node in ast.walk(tree):
+        for ann in (getattr(node, "annotation", None), getattr(node, "returns", None)):
+            if ann is not None:
+                ids.update(id(n) for n in ast.walk(ann))
+    return ids
+
+
+def _describe(node: ast.AST) -> list[str]:
+    """The mutations of one node, as descriptions (empty: nothing to mutate)."""
+    if isinstance(node, ast.BinOp) and type(node.op) in BINOPS:
+        return [f"{type(node.op).__name__} -> {BINOPS[type(node.op)].__name__}"]
+    if isinstance(node, ast.Compare) and type(node.ops[0]) in CMPOPS:
+        return [f"{type(node.ops[0]).__name__} -> {CMPOPS[type(node.ops[0])].__name__}"]
+    if isinstance(node, ast.BoolOp):
+        return ["and -> or" if isinstance(node.op, ast.And) else "or -> and"]
+    if isinstance(node, ast.UnaryOp) and isinstance(node.op, ast.USub | ast.Not):
+        return ["drop unary " + type(node.op).__name__]
+    if isinstance(node, ast.Constant) and type(node.value) in (int, float):
+        return [f"{node.value!r} -> {_new_constant(node.value)!r}"]
+    if isinstance(node, ast.Constant) and isinstance(node.value, bool):
+        return [f"{node.value} -> {not node.value}"]
+    if isinstance(node, ast.Attribute) and node.attr in NAMES:
+        return [f".{node.attr} -> .{NAMES[node.attr]}"]
+    if isinstance(node, ast.Name) and node.id in ("min", "max", "any", "all"):
+        return [f"{node.id} -> {NAMES[node.id]}"]
+    return []
+
+
+def _new_constant(v):
+    if v == 0:
+        return 1
+    if v == 1:
+        return 2 if isinstance(v, int) else 0.5
+    return v + 1 if isinstance(v, int) else v * 1.5
+
+
+def _apply(node: ast.AST) -> None:
+    if isinstance(node, ast.BinOp):
+        node.op = BINOPS[type(node.op)]()
+    elif isinstance(node, ast.Compare):
+        node.ops[0] = CMPOPS[type(node.ops[0])]()
+    elif isinstance(node, ast.BoolOp):
+        node.op = ast.Or() if isinstance(node.op, ast.And) else ast.And()
+    elif isinstance(node, ast.Constant):
+        node.value = (not node.value) if isinstance(node.value, bool) else _new_constant(node.value)
+    elif isinstance(node, ast.Attribute):
+        node.attr = NAMES[node.attr]
+    elif isinstance(node, ast.Name):
+        node.id = NAMES[node.id]
+
+
+class _DropUnary(ast.NodeTransformer):
+    def __init__(self, target: ast.AST) -> None:
+        self.target = target
+
+    def visit_UnaryOp(self, node: ast.UnaryOp):  # noqa: N802 - ast.NodeTransformer's naming
+        self.generic_visit(node)
+        return node.operand if node is self.target else node
+
+
+def mutants(target: Target, source: str) -> list[Mutant]:
+    tree = ast.parse(source)
+    ranges = _ranges(tree, target.functions)
+    skip = _skipped_lines(tree)
+    annotations = _annotation_nodes(tree)
+    out = []
+    for i, node in enumerate(ast.walk(tree)):
+        line = getattr(node, "lineno", None)
+        if line is None or line in skip or id(node) in annotations:
+            continue
+        if not any(lo <= line <= hi for lo, hi in ranges):
+            continue
+        out += [Mutant(target.name, i, line, d) for d in _describe(node)]
+    return out
+
+
+def mutated_source(source: str, mutant: Mutant) -> str:
+    tree = ast.parse(source)
+    node = list(ast.walk(tree))[mutant.index]
+    if isinstance(node, ast.UnaryOp):
+        tree = _DropUnary(node).visit(tree)
+    else:
+        _apply(node)
+    return ast.unparse(ast.fix_missing_locations(tree))
+
+
+#: The test process: imports torch, numpy and numba once, then runs pytest in-process for each mutant after
+#: dropping every module of the package and of the tests (so the mutated file is imported afresh). Saves the
+#: interpreter and library start-up (about 4 s) per mutant. It answers each request with one "@@rc N" line.
+WORKER = r"""
+import json, sys
+import numba, numpy, pytest, torch  # noqa: F401 - loaded once for every mutant
+for line in sys.stdin:
+    for name in [m for m in sys.modules if m.split(".")[0] in ("cuboidcli", "tests")]:
+        del sys.modules[name]
+    rc = pytest.main(json.loads(line))
+    sys.stdout.write(f"\n@@rc {int(rc)}\n")
+    sys.stdout.flush()
+"""
+
+
+class TestRunner:
+    """A worker process in the repository copy that runs pytest on request (see WORKER)."""
+
+    def __init__(self, repo: Path) -> None:
+        self.repo = repo
+        self.proc: subprocess.Popen | None = None
+        self.lines: queue.Queue[str] = queue.Queue()
+
+    def _start(self) -> subprocess.Popen:
+        env = {**os.environ, "PYTHONPATH": str(self.repo), "PYTHONDONTWRITEBYTECODE": "1"}
+        proc = subprocess.Popen(
+            [sys.executable, "-c", WORKER],
+            cwd=self.repo,
+            env=env,
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
+        self.lines = queue.Queue()
+        # a reader thread: the test output is read line by line without blocking the timeout
+        threading.Thread(target=self._read, args=(proc, self.lines), daemon=True).start()
+        return proc
+
+    @staticmethod
+    def _read(proc: subprocess.Popen, lines: queue.Queue) -> None:
+        for line in proc.stdout:
+            lines.put(line)
+        lines.put("")  # end of output: the worker exited
+
+    def stop(self) -> None:
+        if self.proc is not None:
+            self.proc.kill()
+            self.proc.wait()
+            self.proc = None
+
+    def run(self, tests: tuple[str, ...], timeout: float) -> tuple[bool, float]:
+        """(the tests pass, seconds). A timeout or a crashed worker counts as failing tests."""
+        if self.proc is None or self.proc.poll() is not None:
+            self.proc = self._start()
+        args = ["-x", "-q", "-p", "no:cacheprovider", "--no-header", *tests]
+        t0 = time.perf_counter()
+        self.proc.stdin.write(json.dumps(args) + "\n")
+        self.proc.stdin.flush()
+        while True:
+            try:
+                line = self.lines.get(timeout=max(timeout - (time.perf_counter() - t0), 0.01))
+            except queue.Empty:  # timed out: an endless loop is a detected mutant too
+                self.stop()
+                return False, time.perf_counter() - t0
+            if not line:  # the worker died (a crash in native code)
+                self.stop()
+                return False, time.perf_counter() - t0
+            if line.startswith("@@rc "):
+                return int(line.split()[1]) == 0, time.perf_counter() - t0
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("--only", help="comma-separated target names: " + ", ".join(t.name for t in TARGETS))
+    p.add_argument("--timeout", type=float, default=180.0, help="seconds per mutant's test run (killed)")
+    p.add_argument("--list", action="store_true", help="list the mutants and exit")
+    args = p.parse_args(argv)
+    wanted = set(args.only.split(",")) if args.only else {t.name for t in TARGETS}
+    targets = [t for t in TARGETS if t.name in wanted]
+    work = Path(tempfile.mkdtemp(prefix="cuboids-mutation-"))
+    try:
+        ignore = shutil.ignore_patterns(".git", ".venv", "__pycache__", "*.pyc", "runs", ".pytest_cache")
+        shutil.copytree(ROOT, work / "repo", ignore=ignore)
+        repo = work / "repo"
+        runner = TestRunner(repo)
+        survivors: list[Mutant] = []
+        total = killed = 0
+        for target in targets:
+            path = repo / target.path
+            original = path.read_text(encoding="utf-8")
+            ok, seconds = runner.run(target.tests, args.timeout * 3)
+            if not ok:
+                print(f"{target.name}: the tests fail on the unmutated code; fix them first", flush=True)
+                return 2
+            found = mutants(target, original)
+            print(f"{target.name}: {len(found)} mutants of {target.path} ({seconds:.0f} s clean)", flush=True)
+            for m in found:
+                if args.list:
+                    print(f"  {target.path}:{m.line}: {m.description}")
+                    continue
+                path.write_text(mutated_source(original, m), encoding="utf-8")
+                try:
+                    survived, seconds = runner.run(target.tests, args.timeout)
+                finally:
+                    path.write_text(original, encoding="utf-8")
+                total += 1
+                killed += not survived
+                if survived:
+                    survivors.append(m)
+                status = "SURVIVED" if survived else "killed"
+                print(f"  {status:8} {target.path}:{m.line}: {m.description} ({seconds:.0f} s)", flush=True)
+        if args.list:
+            return 0
+        score = 100.0 * killed / total if total else 100.0
+        print(f"\nmutation score: {killed}/{total} killed = {score:.1f} %")
+        print(f"surviving mutants ({len(survivors)}):")
+        lines = {}
+        for t in targets:
+            lines[t.name] = (repo / t.path).read_text(encoding="utf-8").splitlines()
+        for m in survivors:
+            target = next(t for t in targets if t.name == m.target)
+            code = lines[m.target][m.line - 1].strip()
+            print(f"  {target.path}:{m.line}: {m.description}    | {code}")
+        return 0
+    finally:
+        if "runner" in locals():
+            runner.stop()
+        shutil.rmtree(work, ignore_errors=True)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
