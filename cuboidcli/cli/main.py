@@ -20,6 +20,27 @@ def _debug(ctx: click.Context) -> bool:
     return bool(ctx.params.get("debug")) or os.environ.get(DEBUG_ENV, "") not in ("", "0")
 
 
+def _passed_through() -> tuple[type[BaseException], ...]:
+    """Exceptions that end a command on purpose: typer's and click's exits, aborts and usage errors (newer
+    typer releases carry their own copy of click, whose classes are distinct)."""
+    kinds: list[type[BaseException]] = [
+        typer.Exit,
+        typer.Abort,
+        click.exceptions.Exit,
+        click.ClickException,
+        click.Abort,
+    ]
+    try:
+        from typer._click import exceptions as vendored  # noqa: PLC0415
+    except ImportError:
+        return tuple(kinds)
+    kinds += [getattr(vendored, n) for n in ("Exit", "ClickException", "Abort") if hasattr(vendored, n)]
+    return tuple(kinds)
+
+
+_PASS_THROUGH = _passed_through()
+
+
 class CuboidsGroup(TyperGroup):
     """The top-level command group: quiet libraries, and one line instead of a traceback for a bug.
 
@@ -33,7 +54,7 @@ class CuboidsGroup(TyperGroup):
             quiet_libraries()
         try:
             return super().invoke(ctx)
-        except (typer.Exit, typer.Abort, click.exceptions.Exit, click.ClickException, click.Abort):
+        except _PASS_THROUGH:
             raise
         except Exception as exc:
             if _debug(ctx):
