@@ -327,7 +327,9 @@ def evaluate(
             def on_failed(r: int, outcome) -> None:
                 seed = f" (seed {settings.seeds[r]})" if n_runs > 1 else ""
                 console.print(
-                    f"[red]failed[/] {outcome.name}{seed}: {escape(outcome.message)}", highlight=False
+                    f"[red]failed[/] {outcome.name}{seed}: {escape(outcome.message)}",
+                    highlight=False,
+                    soft_wrap=True,
                 )
 
             try:
