@@ -20,6 +20,16 @@ def _debug(ctx: click.Context) -> bool:
     return bool(ctx.params.get("debug")) or os.environ.get(DEBUG_ENV, "") not in ("", "0")
 
 
+def _is_cli_exception(exc: BaseException) -> bool:
+    """An exit or usage error of the command-line layer (click's, or the copy of click that typer vendors),
+    which click turns into its own message and exit status."""
+    names = {"Exit", "Abort", "ClickException"}
+    return any(
+        cls.__name__ in names and cls.__module__.split(".")[0] in ("click", "typer")
+        for cls in type(exc).__mro__
+    )
+
+
 class CuboidsGroup(TyperGroup):
     """The top-level command group: quiet libraries, and one line instead of a traceback for a bug.
 
@@ -33,10 +43,8 @@ class CuboidsGroup(TyperGroup):
             quiet_libraries()
         try:
             return super().invoke(ctx)
-        except (typer.Exit, typer.Abort, click.exceptions.Exit, click.ClickException, click.Abort):
-            raise
         except Exception as exc:
-            if _debug(ctx):
+            if _debug(ctx) or _is_cli_exception(exc):
                 raise
             report_crash(exc)
             raise typer.Exit(1) from None
