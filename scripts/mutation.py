@@ -61,7 +61,12 @@ TARGETS = (
         "metrics",
         "cuboidcli/evaluation/metrics.py",
         None,
-        ("tests/test_metrics.py", "tests/test_eval_objects.py", "tests/test_evaluate_failures.py"),
+        (
+            "tests/test_metrics_edges.py",
+            "tests/test_metrics.py",
+            "tests/test_eval_objects.py",
+            "tests/test_evaluate_failures.py",
+        ),
     ),
     Target(
         "scoring",

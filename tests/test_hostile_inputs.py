@@ -277,3 +277,9 @@ def test_checkpoint_errors_in_the_library(corpus):
             load_net(corpus / name, "solver", net_from_checkpoint)
     with pytest.raises(CheckpointError, match="not found"):
         read_checkpoint(corpus / "absent.pt")
+
+
+@pytest.mark.parametrize("args", [["no-such-command"], ["fit", "--no-such-option"], ["train", "nothing"]])
+def test_usage_errors_are_not_internal_errors(args):
+    result = CliRunner().invoke(app, args)
+    assert result.exit_code == 2 and "internal error" not in result.output

@@ -144,3 +144,31 @@ def test_gradcheck_float64():
     )
     d = torch.tensor([0.001, 0.01, 0.5], dtype=torch.float64, requires_grad=True)
     assert torch.autograd.gradcheck(lambda d: K.occlusion_fn(d, TAU, BETA, 2 * TAU), (d,))
+
+
+def test_set_functions_of_an_empty_and_a_two_cuboid_set():
+    """The empty set: state 0 and infinite OA distance for every point; with two cuboids a point on one of
+    them (on its camera-facing side, hidden by neither) has OA distance 0, however far the other is."""
+    pts = torch.tensor(
+        [[0.0, 0.0, 2.0], [1.0, 0.2, 3.0], [-0.5, 0.1, 2.5], [0.0, 0.0, 6.0]], dtype=torch.float64
+    )
+    f64 = torch.float64
+    none = torch.zeros(0, 3, dtype=f64)
+    assert torch.equal(
+        K.oai_of_set(pts, none, none, torch.zeros(0, 3, 3, dtype=f64), 0.004, 5.0, 0.008),
+        torch.zeros(4, dtype=f64),
+    )
+    assert torch.equal(
+        K.oa_sq_distance(pts, none, none, torch.zeros(0, 3, 3, dtype=f64)),
+        torch.full((4,), math.inf, dtype=f64),
+    )
+    near = ([0.0, 0.0, 2.5], [0.5, 0.5, 0.5])  # front face z = 2 holds pts[0]
+    far = ([3.0, 0.0, 8.0], [0.5, 0.5, 0.5])
+    c = torch.tensor([near[0], far[0]], dtype=torch.float64)
+    a = torch.tensor([near[1], far[1]], dtype=torch.float64)
+    R = torch.eye(3, dtype=torch.float64).expand(2, 3, 3)
+    oa = K.oa_sq_distance(pts[:1], c, a, R)
+    assert oa.item() == 0.0
+    # a single cuboid's set value is its own value
+    one = K.oai_of_set(pts, c[:1], a[:1], R[:1], 0.004, 5.0, 0.008)
+    torch.testing.assert_close(one, K.oai_per_cuboid(pts, c[:1], a[:1], R[:1], 0.004, 5.0, 0.008)[0])

@@ -20,25 +20,14 @@ def _debug(ctx: click.Context) -> bool:
     return bool(ctx.params.get("debug")) or os.environ.get(DEBUG_ENV, "") not in ("", "0")
 
 
-def _passed_through() -> tuple[type[BaseException], ...]:
-    """Exceptions that end a command on purpose: typer's and click's exits, aborts and usage errors (newer
-    typer releases carry their own copy of click, whose classes are distinct)."""
-    kinds: list[type[BaseException]] = [
-        typer.Exit,
-        typer.Abort,
-        click.exceptions.Exit,
-        click.ClickException,
-        click.Abort,
-    ]
-    try:
-        from typer._click import exceptions as vendored  # noqa: PLC0415
-    except ImportError:
-        return tuple(kinds)
-    kinds += [getattr(vendored, n) for n in ("Exit", "ClickException", "Abort") if hasattr(vendored, n)]
-    return tuple(kinds)
-
-
-_PASS_THROUGH = _passed_through()
+def _is_cli_exception(exc: BaseException) -> bool:
+    """An exit or usage error of the command-line layer (click's, or the copy of click that typer vendors),
+    which click turns into its own message and exit status."""
+    names = {"Exit", "Abort", "ClickException"}
+    return any(
+        cls.__name__ in names and cls.__module__.split(".")[0] in ("click", "typer")
+        for cls in type(exc).__mro__
+    )
 
 
 class CuboidsGroup(TyperGroup):
@@ -54,10 +43,8 @@ class CuboidsGroup(TyperGroup):
             quiet_libraries()
         try:
             return super().invoke(ctx)
-        except _PASS_THROUGH:
-            raise
         except Exception as exc:
-            if _debug(ctx):
+            if _debug(ctx) or _is_cli_exception(exc):
                 raise
             report_crash(exc)
             raise typer.Exit(1) from None
@@ -75,18 +62,14 @@ app = typer.Typer(
 
 def _version(value: bool) -> None:
     if value:
-        from cuboidcli.bundles import describe_weights
-
         typer.echo(f"cuboids {__version__}")
-        for line in describe_weights():
-            typer.echo(line)
         raise typer.Exit()
 
 
 @app.callback()
 def main(
     version: bool = typer.Option(
-        False, "--version", callback=_version, is_eager=True, help="Print the version and the weights in use."
+        False, "--version", callback=_version, is_eager=True, help="Print the version."
     ),
     debug: bool = typer.Option(
         False,
