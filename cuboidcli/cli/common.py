@@ -134,33 +134,3 @@ def resolve_device(device: str) -> str:
     if device not in ("cpu", "cuda"):
         fail(f"--device {device!r}: choose auto, cpu or cuda")
     return device
-
-
-# Scale-out options shared by `cuboids fit DIR` and `cuboids evaluate` (cuboidcli/scaleout.py runs them).
-def workers_option():
-    return typer.Option(1, "--workers", help="Run frames in N local processes (the same results as 1).")
-
-
-def ray_option():
-    return typer.Option(
-        False, "--ray", help="Run frames as Ray tasks on a Ray started here (--workers CPUs)."
-    )
-
-
-def ray_address_option():
-    return typer.Option(
-        None,
-        "--ray-address",
-        help="Run frames as Ray tasks on this Ray cluster ('auto': the one this machine belongs to, "
-        "ray://HOST:10001); implies --ray. Needs: pip install 'cuboids[ray]'.",
-    )
-
-
-def ray_target(workers: int, ray: bool, ray_address: str | None) -> str | None:
-    """The ``ray`` argument of :func:`cuboidcli.scaleout.run_tasks` for these options (None: no Ray, "": a
-    local Ray); checks ``--workers``."""
-    if workers < 1:
-        fail(f"--workers must be at least 1 (got {workers})")
-    if ray_address is not None and not ray_address.strip():
-        fail("--ray-address is empty: give 'auto', HOST:PORT or ray://HOST:10001, or use --ray alone")
-    return ray_address if ray_address is not None else ("" if ray else None)

@@ -19,6 +19,7 @@ import numpy as np
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid, palette_color
 from cuboidcli.export.boxmesh import flat_box
+from cuboidcli.geometry.gravity import smallest_rotation
 from cuboidcli.io.atomic import atomic_write
 
 #: OpenCV camera frame -> glTF frame (x right, y up, z backward).
@@ -37,15 +38,7 @@ def level_rotation(up: np.ndarray | None) -> np.ndarray:
     if up is None:
         return OPENCV_TO_GLTF.copy()
     u = OPENCV_TO_GLTF @ (np.asarray(up, dtype=np.float64) / np.linalg.norm(up))
-    y = np.array([0.0, 1.0, 0.0])
-    v, c = np.cross(u, y), float(u @ y)
-    s = float(np.linalg.norm(v))
-    if s < 1e-12:
-        turn = np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    else:
-        k = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]]) / s
-        turn = np.eye(3) + s * k + (1 - c) * k @ k
-    return turn @ OPENCV_TO_GLTF
+    return smallest_rotation(u, np.array([0.0, 1.0, 0.0])) @ OPENCV_TO_GLTF
 
 
 def gltf_points(points: np.ndarray, up: np.ndarray | None = None) -> np.ndarray:

@@ -71,8 +71,7 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
     a = a.clone()
     values = None
     axes = R[0].double()
-    order = torch.argsort(a[0])
-    slab_axis = int(order[0]) if a[0, order[0]] < 0.25 * a[0, order[1]] else -1
+    slab_axis = thin_axis(a[0].cpu().numpy())
     faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
     slab_cap = config.a_max if config.slab_max_m is None else max(config.a_max, config.slab_max_m)
     caps = [config.a_max if slab_axis < 0 else slab_cap] * 3
@@ -207,17 +206,19 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
         c3, a3, v3, g3 = grow_cuboid(pts, c2, a2, R2, state, g2, sp, config)
         results.append((kind, c3, a3, R2, v3, g3))
     kind, c2, a2, R2, v2, g2 = results[-1]
-    if kind == "manhattan" and not _is_slab(a2) and results[0][5] > g2 + MANHATTAN_SLACK * abs(g2):
+    free_yaw_wins = results[0][5] > g2 + MANHATTAN_SLACK * abs(g2)
+    if kind == "manhattan" and thin_axis(a2[0].cpu().numpy()) < 0 and free_yaw_wins:
         kind, c2, a2, R2, v2, g2 = results[0]
     if g2 < ALIGN_KEEP * gain:
         return c, a, R, values, gain, "free"
     return c2, a2, R2, v2, g2, kind
 
 
-def _is_slab(half: torch.Tensor) -> bool:
-    """A slab (wall, floor, ceiling, table top): its thinnest axis under a quarter of its middle one."""
-    a = torch.sort(half.reshape(-1)).values
-    return bool(a[0] < 0.25 * a[1])
+def thin_axis(half: np.ndarray) -> int:
+    """The thickness axis of a slab (wall, floor, ceiling, table top: its thinnest axis under a quarter of
+    its middle one) with half-sizes ``half`` (3,), or -1 for a box that is not a slab."""
+    order = np.argsort(half)
+    return int(order[0]) if half[order[0]] < 0.25 * half[order[1]] else -1
 
 
 def _refit_box(p: np.ndarray, center: np.ndarray, half: np.ndarray, rot: np.ndarray, a_min: float):
@@ -229,8 +230,7 @@ def _refit_box(p: np.ndarray, center: np.ndarray, half: np.ndarray, rot: np.ndar
     Returns (center (3,), half (3,))."""
     local = (p - center) @ rot
     half = half.copy()
-    order = np.argsort(half)
-    slab = int(order[0]) if half[order[0]] < 0.25 * half[order[1]] else -1
+    slab = thin_axis(half)
     # distance of every point to each face plane, faces ordered (+x, -x, +y, -y, +z, -z): (M, 6)
     dist = np.abs(local[:, :, None] - np.stack([half, -half], axis=1)[None]).reshape(len(p), 6)
     nearest = dist.argmin(1)

@@ -291,18 +291,25 @@ def upright_rotation(rot: np.ndarray, up: np.ndarray) -> np.ndarray:
     the axis perpendicular to both; the cuboid keeps its yaw. Column order and handedness are kept."""
     k = int(np.abs(rot.T @ up).argmax())
     target = up * np.sign(rot[:, k] @ up)
-    return _turn(rot, rot[:, k], target)
+    return smallest_rotation(rot[:, k], target) @ rot
 
 
-def _turn(rot: np.ndarray, src: np.ndarray, dst: np.ndarray) -> np.ndarray:
-    """``rot`` rotated by the smallest rotation taking unit vector src onto unit vector dst."""
+def smallest_rotation(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
+    """(3, 3) the smallest rotation taking unit vector src onto unit vector dst (Rodrigues). For opposite
+    vectors it is the half turn about the axis perpendicular to src and to z (or to x when src is along z).
+    """
     v = np.cross(src, dst)
-    s, c = np.linalg.norm(v), float(src @ dst)
+    s, c = float(np.linalg.norm(v)), float(src @ dst)
     if s < 1e-12:
-        return rot.copy()
+        if c > 0:
+            return np.eye(3)
+        n = np.cross(src, [0.0, 0.0, 1.0])
+        if np.linalg.norm(n) < 1e-6:
+            n = np.cross(src, [1.0, 0.0, 0.0])
+        n /= np.linalg.norm(n)
+        return 2.0 * np.outer(n, n) - np.eye(3)
     kx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]]) / s
-    turn = np.eye(3) + s * kx + (1 - c) * kx @ kx
-    return turn @ rot
+    return np.eye(3) + s * kx + (1 - c) * kx @ kx
 
 
 def manhattan_rotation(rot: np.ndarray, axes: np.ndarray) -> np.ndarray:
