@@ -9,7 +9,7 @@ the sampler are built once, before the first frame (weights loading is not timed
 
     python benchmarks/bench_fit.py [--frames 5] [--fast] [--no-refine] [--sampler sequential]
         [--solver numerical|neural] [--weights PATH] [--hypotheses 4096] [--seed 0]
-        [--local-fraction 0.75] [--max-batches 4]
+        [--local-fraction 0.75] [--max-batches 4] [--align free|gravity|manhattan]
 
 --weights: a folder (solver_v1.pt / sampler_v2.pt inside) or a .pt file; it goes to the neural solver and
 the learned sampler (the other solvers and samplers have no weights). None = the shipped weights.
@@ -58,6 +58,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--local-fraction", type=float, default=None, help="share of localised minimal sets")
     ap.add_argument("--max-batches", type=int, default=None, help="adaptive termination: batches per step")
+    ap.add_argument("--align", default="free", help="free | gravity | manhattan")
     args = ap.parse_args()
 
     import torch
@@ -79,6 +80,7 @@ def main() -> None:
         seed=args.seed,
         refine=not args.no_refine,
         prescore_points=600 if args.fast else 0,
+        align=args.align,
     )
     overrides = {"local_fraction": args.local_fraction, "max_batches": args.max_batches}
     cfg = replace(cfg, **{k: v for k, v in overrides.items() if v is not None})
@@ -99,7 +101,8 @@ def main() -> None:
         f"solver {cfg.solver}, sampler {cfg.sampler}, weights {args.weights or 'shipped'}: "
         f"built in {time.perf_counter() - t:.2f} s"
     )
-    stages = ("prepare", "sample", "solve", "score", "refine", "update", "total", "assign")
+    stages = ("prepare", "gravity", "sample", "solve", "score", "refine", "align", "update", "total")
+    stages += ("assign",)
     print(f"{'frame':28s} {'pts':>5s} {'|M|':>3s} {'steps':>5s} " + " ".join(f"{s:>7s}" for s in stages))
     rows = []
     for name, depth, cam in frames(args.frames):

@@ -30,6 +30,7 @@ _PAPER = {
     "max_batches": 1,
     "hypotheses": 4096,
     "slab_max_m": None,
+    "theta_log_factor": 9.0,
 }
 
 PRESETS: dict[str, Preset] = {

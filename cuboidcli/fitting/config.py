@@ -26,7 +26,9 @@ class FitConfig:
     tau_c_sq_m2: float | None = None
     """tau_c: where the occlusion penalty f_O turns linear, m^2; None = 2 * tau (the paper's test value)."""
     theta: float | None = None
-    """Theta: minimum inlier-count gain for a cuboid to be added; None = 9 ln n (n = fitting points)."""
+    """Theta: minimum inlier-count gain for a cuboid to be added; None = theta_log_factor * ln n."""
+    theta_log_factor: float = 6.0
+    """k in the default Theta = k ln n (n = fitting points); the paper's k is 9."""
     grid_step: int = 8
     """Fitting points are every grid_step-th pixel of the depth map (8 -> 60x80 at 480x640)."""
     occlusion_aware: bool = True
@@ -83,6 +85,8 @@ class FitConfig:
     """After refinement, up to this many rounds push the winner's faces outwards while its inlier-count
     gain rises (fitting/pipeline.py grow_cuboid): a minimal set of six points spans only part of a wall or
     a table. 0 = no growing."""
+    grow_thickness: bool = True
+    """Growing may also thicken a slab (a seat top grows down into the seat's front)."""
     grow_step_m: float = 0.1
     """Smallest step a face is pushed by when growing, m (also the resolution at which a box ends)."""
     refine_max_points: int = 1024
@@ -97,7 +101,7 @@ class FitConfig:
         return 2.0 * self.tau_sq_m2 if self.tau_c_sq_m2 is None else self.tau_c_sq_m2
 
     def theta_for(self, n_points: int) -> float:
-        return 9.0 * math.log(max(n_points, 2)) if self.theta is None else self.theta
+        return self.theta_log_factor * math.log(max(n_points, 2)) if self.theta is None else self.theta
 
     def to_dict(self) -> dict:
         return asdict(self)

@@ -24,6 +24,13 @@ from cuboidcli.geometry.kernels import combine
 ALIGN_KEEP = 0.8
 #: Manhattan axes are preferred over a free yaw unless the free yaw gains this share more.
 MANHATTAN_SLACK = 0.02
+#: A slab turned to the tightest rectangle around its points (:func:`square_slab`) is kept when it gains
+#: this share of what the solver's in-plane angle gains, both grown.
+SQUARE_KEEP = 0.995
+#: Face moves tried first when a slab thickens (m); the pull-back after growing trims an overshoot.
+THICKEN_STEPS_M = (0.6, 0.3)
+#: In-plane angles tried for the tightest rectangle (radians).
+SQUARE_ANGLES = np.deg2rad(np.arange(0.0, 90.0, 2.0))
 #: A point lies on a face plane of an aligned box when it is this close to it (m); about tau.
 FACE_BAND_M = 0.06
 
@@ -49,10 +56,52 @@ def refine_winner(
     c, a, R, values, gain = _refine_once(pts, c, a, R, values, state, gain, sp, config, gen)
     if config.grow_rounds < 1:
         return c, a, R, values, gain
+    best = _grow_and_refine(pts, c, a, R, values, state, gain, sp, config, gen)
+    square = square_slab(pts, c, a, R, values, state, config)
+    if square is not None:
+        c2, a2, R2 = square
+        v2 = values_one(pts, c2, a2, R2, sp)
+        other = _grow_and_refine(pts, c2, a2, R2, v2, state, gain_of(v2, state), sp, config, gen)
+        if other[4] >= SQUARE_KEEP * best[4]:
+            best = other
+    return best
+
+
+def _grow_and_refine(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen):
     c2, a2, values2, gain2 = grow_cuboid(pts, c, a, R, state, gain, sp, config)
     if gain2 <= gain:
         return c, a, R, values, gain
     return _refine_once(pts, c2, a2, R, values2, state, gain2, sp, config, gen)
+
+
+def square_slab(pts, c, a, R, values, state, config: FitConfig):
+    """A slab turned in its plane to the tightest rectangle around the points it newly explains, its
+    extents re-fitted to them (:func:`_refit_box`): a six-point box on a table top or a cabinet front is at
+    a random in-plane angle, which the inlier count cannot see but growing its edges and its thickness
+    can. Returns (center, half, rotation) as (1, ...) tensors, or None for a box that is not a slab."""
+    k = thin_axis(a[0].cpu().numpy())
+    if k < 0:
+        return None
+    inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)
+    if inl.numel() < config.min_set:
+        return None
+    p = pts[inl].double().cpu().numpy()
+    r0 = R[0].double().cpu().numpy()
+    i, j = [m for m in range(3) if m != k]
+    uv = (p - p.mean(0)) @ r0[:, [i, j]]
+    best, best_area = 0.0, np.inf
+    for ang in SQUARE_ANGLES:
+        cs, sn = np.cos(ang), np.sin(ang)
+        x, y = uv @ np.array([cs, sn]), uv @ np.array([-sn, cs])
+        area = np.ptp(np.percentile(x, [1.0, 99.0])) * np.ptp(np.percentile(y, [1.0, 99.0]))
+        if area < best_area:
+            best, best_area = ang, area
+    cs, sn = np.cos(best), np.sin(best)
+    rot = r0.copy()
+    rot[:, i], rot[:, j] = cs * r0[:, i] + sn * r0[:, j], -sn * r0[:, i] + cs * r0[:, j]
+    half = a[0].double().cpu().numpy()
+    cn, an = _refit_box(p, c[0].double().cpu().numpy(), half, rot, config.a_min)
+    return tuple(torch.from_numpy(x)[None].to(device=c.device, dtype=c.dtype) for x in (cn, an, rot))
 
 
 def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
@@ -72,9 +121,9 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
     values = None
     axes = R[0].double()
     slab_axis = thin_axis(a[0].cpu().numpy())
-    faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
+    faces = [(k, sgn) for k in range(3) if k != slab_axis or config.grow_thickness for sgn in (1.0, -1.0)]
     slab_cap = config.a_max if config.slab_max_m is None else max(config.a_max, config.slab_max_m)
-    caps = [config.a_max if slab_axis < 0 else slab_cap] * 3
+    caps = [config.a_max if slab_axis < 0 or k == slab_axis else slab_cap for k in range(3)]
     done: set = set()
     for _ in range(config.grow_rounds):
         moved = False
@@ -82,7 +131,11 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
             if (k, sgn) in done:
                 continue
             grew = False
-            for step in (max(float(a[0, k]), config.grow_step_m), config.grow_step_m):
+            if k == slab_axis:  # a slab's thickness: its new faces hold points only past an edge
+                steps = THICKEN_STEPS_M + (config.grow_step_m,)
+            else:
+                steps = (max(float(a[0, k]), config.grow_step_m), config.grow_step_m)
+            for step in steps:
                 new_half = min(float(a[0, k]) + 0.5 * step, caps[k])
                 grow = new_half - float(a[0, k])
                 if grow <= 1e-6:
@@ -225,8 +278,8 @@ def _refit_box(p: np.ndarray, center: np.ndarray, half: np.ndarray, rot: np.ndar
     """The box of the given half-sizes and centre turned to axes ``rot``, with its faces moved onto the
     points p (M, 3) it explains: a point lies on the face plane nearest to it when it is within
     ``FACE_BAND_M`` of it, and a face with points moves to their median; faces without points stay
-    (growing moves them). A slab keeps its thickness, is centred on the median of its points across it
-    and spans the 1st to 99th percentile of them along its two long axes.
+    (growing moves them). A slab keeps its thickness, the face its points lie on goes to their median,
+    and it spans the 1st to 99th percentile of them along its two long axes.
     Returns (center (3,), half (3,))."""
     local = (p - center) @ rot
     half = half.copy()
@@ -238,8 +291,9 @@ def _refit_box(p: np.ndarray, center: np.ndarray, half: np.ndarray, rot: np.ndar
     lo, hi = -half.copy(), half.copy()
     mid = np.zeros(3)
     for k in range(3):
-        if k == slab:
-            mid[k] = np.median(local[:, k])
+        if k == slab:  # the face the points lie on moves onto their median; the thickness stays behind it
+            med = float(np.median(local[:, k]))
+            mid[k] = med - np.sign(med) * half[k]
             continue
         if slab >= 0:  # a slab's edges have no points on them: it ends where its points end
             lo[k], hi[k] = np.percentile(local[:, k], [1.0, 99.0])
