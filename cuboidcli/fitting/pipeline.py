@@ -69,7 +69,8 @@ class FitInfo:
     align: str = "free"
     """The orientation constraint applied: the configured one, or "free" when no gravity was available."""
     aligned: list[str] = field(default_factory=list)
-    """Per selected cuboid: "manhattan", "gravity" or "free" (an aligned box fitted much worse)."""
+    """Per selected cuboid: "manhattan", "gravity", "tilted" (a slab kept in its own, tilted plane with its
+    edges turned upright) or "free" (an aligned box fitted much worse)."""
     warnings: list[str] = field(default_factory=list)
     """Things the user should know about this fit (one line each)."""
 

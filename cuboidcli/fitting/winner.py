@@ -31,6 +31,8 @@ SQUARE_KEEP = 0.995
 THICKEN_STEPS_M = (0.6, 0.3)
 #: In-plane angles tried for the tightest rectangle (radians).
 SQUARE_ANGLES = np.deg2rad(np.arange(0.0, 90.0, 2.0))
+#: A slab whose tightest rectangle is within this angle (radians) of its own is left as it is.
+SQUARE_MIN_TURN = np.deg2rad(3.0)
 #: A point lies on a face plane of an aligned box when it is this close to it (m); about tau.
 FACE_BAND_M = 0.06
 
@@ -78,7 +80,8 @@ def square_slab(pts, c, a, R, values, state, config: FitConfig):
     """A slab turned in its plane to the tightest rectangle around the points it newly explains, its
     extents re-fitted to them (:func:`_refit_box`): a six-point box on a table top or a cabinet front is at
     a random in-plane angle, which the inlier count cannot see but growing its edges and its thickness
-    can. Returns (center, half, rotation) as (1, ...) tensors, or None for a box that is not a slab."""
+    can. Returns (center, half, rotation) as (1, ...) tensors, or None for a box that is not a slab or is
+    already turned that way."""
     k = thin_axis(a[0].cpu().numpy())
     if k < 0:
         return None
@@ -89,13 +92,15 @@ def square_slab(pts, c, a, R, values, state, config: FitConfig):
     r0 = R[0].double().cpu().numpy()
     i, j = [m for m in range(3) if m != k]
     uv = (p - p.mean(0)) @ r0[:, [i, j]]
-    best, best_area = 0.0, np.inf
-    for ang in SQUARE_ANGLES:
-        cs, sn = np.cos(ang), np.sin(ang)
-        x, y = uv @ np.array([cs, sn]), uv @ np.array([-sn, cs])
-        area = np.ptp(np.percentile(x, [1.0, 99.0])) * np.ptp(np.percentile(y, [1.0, 99.0]))
-        if area < best_area:
-            best, best_area = ang, area
+    cs, sn = np.cos(SQUARE_ANGLES), np.sin(SQUARE_ANGLES)
+    x = uv @ np.stack([cs, sn])  # (M, angles): coordinates along the rotated first axis
+    y = uv @ np.stack([-sn, cs])
+    lo_hi = np.percentile(np.concatenate([x, y], 1), [1.0, 99.0], axis=0)
+    extent = lo_hi[1] - lo_hi[0]
+    n = len(SQUARE_ANGLES)
+    best = SQUARE_ANGLES[int(np.argmin(extent[:n] * extent[n:]))]
+    if min(best, np.pi / 2 - best) < SQUARE_MIN_TURN:  # already the tightest rectangle
+        return None
     cs, sn = np.cos(best), np.sin(best)
     rot = r0.copy()
     rot[:, i], rot[:, j] = cs * r0[:, i] + sn * r0[:, j], -sn * r0[:, i] + cs * r0[:, j]
@@ -233,8 +238,11 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
     the walls, floor and ceiling of a room, and by other boxes unless the free yaw gains
     ``MANHATTAN_SLACK`` more). Each candidate keeps the winner's centre and sizes, its faces are
     moved onto the winner's new inliers (:func:`_refit_box`), and it grows like any winner.
-    The best candidate replaces the winner when it keeps ``ALIGN_KEEP`` of its gain.
-    Returns (c, a, R, values, gain, kind) with kind "manhattan", "gravity" or "free" (kept as it was).
+    The best candidate replaces the winner when it keeps ``ALIGN_KEEP`` of its gain (a Manhattan one that
+    does not falls back to the upright one). A slab for which neither holds keeps its plane and is turned
+    in it to upright edges (:func:`edge_to_vertical`) when that keeps ``ALIGN_KEEP`` of its gain.
+    Returns (c, a, R, values, gain, kind) with kind "manhattan", "gravity", "tilted" (a slab in its own
+    plane, edges turned upright) or "free" (kept as it was).
     """
     inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)
     if inl.numel() < config.min_set:
@@ -262,9 +270,46 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
     free_yaw_wins = results[0][5] > g2 + MANHATTAN_SLACK * abs(g2)
     if kind == "manhattan" and thin_axis(a2[0].cpu().numpy()) < 0 and free_yaw_wins:
         kind, c2, a2, R2, v2, g2 = results[0]
-    if g2 < ALIGN_KEEP * gain:
-        return c, a, R, values, gain, "free"
-    return c2, a2, R2, v2, g2, kind
+    if g2 < ALIGN_KEEP * gain and kind == "manhattan":  # off the room's axes, maybe still upright
+        kind, c2, a2, R2, v2, g2 = results[0]
+    if g2 >= ALIGN_KEEP * gain:
+        return c2, a2, R2, v2, g2, kind
+    rot = edge_to_vertical(r0, thin_axis(a0), alignment)
+    if rot is not None:
+        cn, an = _refit_box(p, c0, a0, rot, config.a_min)
+        c2, a2, R2 = (torch.from_numpy(x)[None].to(c.dtype) for x in (cn, an, rot))
+        v2 = values_one(pts, c2, a2, R2, sp)
+        c2, a2, v2, g2 = grow_cuboid(pts, c2, a2, R2, state, gain_of(v2, state), sp, config)
+        if g2 >= ALIGN_KEEP * gain:
+            return c2, a2, R2, v2, g2, "tilted"
+    return c, a, R, values, gain, "free"
+
+
+def edge_to_vertical(rot: np.ndarray, k: int, alignment: Alignment) -> np.ndarray | None:
+    """A slab's axes (3, 3) turned in its own plane (thickness axis k kept) so that one edge is as vertical
+    as the plane allows; for a level slab (floor, table top) one edge along the room's first horizontal
+    axis. A wall measured with a tilt (far Kinect depth bends) then stands with upright edges instead of
+    as a rhombus. None when k < 0 (not a slab) or when there is no direction to turn to."""
+    if k < 0:
+        return None
+    n = rot[:, k]
+    target = alignment.up - (alignment.up @ n) * n
+    if np.linalg.norm(target) < 0.3 and alignment.axes is not None:  # level: take a room axis
+        h = alignment.axes[:, 1]
+        target = h - (h @ n) * n
+    norm = np.linalg.norm(target)
+    if norm < 0.3:
+        return None
+    target = target / norm
+    i, j = [m for m in range(3) if m != k]
+    if abs(rot[:, j] @ target) > abs(rot[:, i] @ target):
+        i, j = j, i
+    out = rot.copy()
+    out[:, i] = target if rot[:, i] @ target >= 0 else -target
+    out[:, j] = np.cross(out[:, k], out[:, i])
+    if np.linalg.det(out) < 0:
+        out[:, j] = -out[:, j]
+    return out
 
 
 def thin_axis(half: np.ndarray) -> int:
