@@ -59,7 +59,8 @@ def main() -> None:
         background = background_image(camera, rgb, depth)
         tiles = [(name, background)]
         for mode in modes:
-            cuboids, info = fit_depth(depth, camera, replace(base, align=mode), solver=solver, sampler=sampler)
+            config = replace(base, align=mode)
+            cuboids, info = fit_depth(depth, camera, config, solver=solver, sampler=sampler)
             overlay = draw_overlay(background, camera, cuboids, raycast(camera, cuboids))
             tiles.append((f"{info.align} ({len(cuboids)})", overlay))
             print(name, mode, info.align, len(cuboids), info.aligned, flush=True)
