@@ -47,7 +47,9 @@ def main() -> None:
     frames = [demo_frame()]
     for data in args.data:
         names = args.names.split(",") if args.names else None
-        for f in load_frames(data, names=[n for n in names if n] if names else None)[0]:
+        for f in load_frames(data)[0]:
+            if names and f.name not in names:
+                continue
             rgb = f.rgb() if hasattr(f, "rgb") else None
             frames.append((f.name, f.depth_m(), f.camera, rgb))
     base = replace(FitConfig(), seed=args.seed)

@@ -274,6 +274,7 @@ def test_presets_combine_and_options_override_them():
     assert resolve("uniform,paper")[0] == FitConfig(
         sampler="uniform", refine=False, local_fraction=0.0, max_batches=1, hypotheses=4096, slab_max_m=None,
         theta_log_factor=9.0,
+        align="free",
     )
     assert resolve(None)[0] == FitConfig()
 

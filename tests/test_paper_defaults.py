@@ -47,7 +47,7 @@ def test_the_paper_preset_has_the_papers_sampling():
     for name in ("ours", "ours-neural", "seqransac-oai", "seqransac"):
         cfg = resolve(name)[0]
         assert (cfg.hypotheses, cfg.local_fraction, cfg.max_batches, cfg.refine) == (4096, 0.0, 1, False)
-        assert cfg.theta_log_factor == 9.0
+        assert cfg.theta_log_factor == 9.0 and cfg.align == "free"
     assert resolve("ours")[0].sampler == "learned" and not resolve("seqransac")[0].occlusion_aware
     outdoor, auc_outdoor, _ = resolve("paper,outdoor")
     assert outdoor.tau_sq_m2 == 0.04 and auc_outdoor == (50.0, 10.0)

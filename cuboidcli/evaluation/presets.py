@@ -31,6 +31,7 @@ _PAPER = {
     "hypotheses": 4096,
     "slab_max_m": None,
     "theta_log_factor": 9.0,
+    "align": "free",
 }
 
 PRESETS: dict[str, Preset] = {

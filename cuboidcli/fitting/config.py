@@ -62,10 +62,11 @@ class FitConfig:
     its two long axes when the winner grows, m: a wall or a floor may be 8 m long while its thickness
     stays bounded, instead of being split into patches (real frames: coverage 69.6 -> 73.8 %, AUC@20
     65.7 -> 67.0 %; synthetic test split: AUC@20 92.0 -> 92.4 %). None = a_max (the paper's bound)."""
-    align: str = "free"
+    align: str = "manhattan"
     """Orientation of the selected cuboids: free (any rotation, the paper) | gravity (one axis vertical,
-    any yaw) | manhattan (the room's axes, or a free yaw where that fits better). gravity and manhattan
-    need an up direction: ``gravity_down`` or one estimated from the depth map (else the fit stays free)."""
+    any yaw) | manhattan (the room's axes, or a free yaw where that fits better; the default: real frames
+    AUC@20 73.3 % against 72.4 % free, synthetic test split 93.5 % both). gravity and manhattan need an up
+    direction: ``gravity_down`` or one estimated from the depth map (else the fit stays free)."""
     gravity_down: tuple[float, float, float] | None = None
     """Down direction in camera coordinates given by the user (an IMU, ARKit); None = estimate it from the
     depth map when ``align`` needs it."""
