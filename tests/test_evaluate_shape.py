@@ -253,11 +253,13 @@ def test_box_recall_and_precision_at_iou_25(room):
     exact = frame_metrics("f", depth, CAM, boxes, gt=boxes)
     assert exact.row()["box_recall_iou25_pct"] == 100.0 and exact.row()["box_precision_iou25_pct"] == 100.0
     far = Cuboid([0.0, 0.0, 30.0], [0.5, 0.5, 0.5], np.eye(3))
-    shrunk = Cuboid(boxes[3].center, boxes[3].half_size * 0.5, boxes[3].rotation)  # IoU 1/8: no match
-    pred = boxes[:3] + [shrunk, boxes[4], far]
+    cabinet = Cuboid(boxes[3].center, boxes[3].half_size * 0.7, boxes[3].rotation)  # IoU 0.343: a match
+    small = Cuboid(boxes[4].center, boxes[4].half_size * 0.5, boxes[4].rotation)  # IoU 1/8: none
+    pred = boxes[:3] + [cabinet, small, far]
     m = frame_metrics("f", depth, CAM, pred, gt=boxes)
     assert m.row()["box_recall_iou25_pct"] == pytest.approx(80.0)
     assert m.row()["box_precision_iou25_pct"] == pytest.approx(100 * 4 / 6)
+    assert m.row()["recall_iou0.5_pct"] == pytest.approx(60.0)
     run = aggregate([exact, m])
     assert run["box_recall_iou25_pct"] == pytest.approx(100 * 9 / 10)
     assert run["box_precision_iou25_pct"] == pytest.approx(100 * 9 / 11)
@@ -369,6 +371,21 @@ def test_saved_fit_with_gravity_is_measured_against_it(app, tmp_path):
     assert run["axis_angle_manhattan_median_deg"] is None  # a given gravity has no room axes
 
 
+def test_saved_fits_are_measured_with_their_grid_and_seed(app, tmp_path):
+    """A fit without gravity, saved with grid step 1: the evaluation estimates gravity on the fit's grid
+    (80x60 frames give a reliable estimate at grid step 1, none at the default 8)."""
+    data, fits, out = tmp_path / "data", tmp_path / "fits", tmp_path / "out"
+    make_folder(data)  # no known gravity
+    for i in range(3):
+        write_result(
+            fits / f"f{i}.json", FitResult(SMALL_CAM, scene(i), settings={"grid_step": 1, "seed": 3})
+        )
+    res = CliRunner().invoke(app, ["evaluate", str(data), "--fits", str(fits), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    run = json.loads((out / "metrics.json").read_text())["runs"][0]
+    assert run["frames_gravity_estimated"] == 3 and run["axis_angle_gravity_median_deg"] < 0.05
+
+
 def test_align_option_fits_against_the_estimated_gravity(app, tmp_path):
     """--align gravity: the fit estimates gravity (grid step 1 at 80x60), its cuboids are upright against
     it, and the evaluation measures them against that gravity (reference "fit")."""
@@ -414,11 +431,14 @@ def test_frames_without_ground_truth_or_gravity_leave_the_fields_empty(tmp_path)
         assert "gravity_error_deg" not in row and row["gravity_ref"] == "none"
 
 
-def test_cameras_of_other_sizes_still_render_their_faces():
-    """The z-buffer follows each frame's own camera (an odd size, off-centre principal point)."""
+def test_visible_faces_match_the_renderer_inside_and_outside_boxes():
+    """The z-buffer follows each frame's own camera (an odd size, off-centre principal point); from inside
+    a room box its far side is what the camera sees."""
     cam = Camera(fx=100.0, fy=90.0, cx=40.3, cy=20.7, width=77, height=45)
+    room = Cuboid([0.2, -0.1, 1.5], [2.5, 1.5, 3.0], yaw(0.2))  # around the camera
     box = Cuboid([0.0, 0.0, 3.0], [0.5, 0.4, 0.3], np.eye(3))
-    depth, inst = render_boxes([box], cam)
-    owner, face = visible_faces(cam, [box])
-    assert ((owner == 0) == (inst == 1)).all()
-    np.testing.assert_allclose(face[owner == 0], depth[owner == 0], atol=1e-5)
+    depth, inst = render_boxes([box, room], cam)
+    owner, face = visible_faces(cam, [box, room])  # the far side of the room must not cover the box
+    np.testing.assert_array_equal(owner, inst - 1)
+    assert (owner == 1).sum() > 0.5 * owner.size
+    np.testing.assert_allclose(face, depth, atol=1e-5)
