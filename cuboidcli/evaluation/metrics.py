@@ -428,7 +428,6 @@ def frame_metrics(
             fit_gravity=fit_gravity,
             known=known_gravity,
             estimate=(cfg.grid_step, cfg.seed),
-            masks=masks,
         )
     return m
 

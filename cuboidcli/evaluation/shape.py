@@ -27,10 +27,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit, prange
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.raycast import pixel_rays, ray_box_interval
+from cuboidcli.evaluation.raycast import pixel_rays
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity
 
 #: A slab counts as Manhattan-aligned when all its axes are within this angle of the room's axes.
@@ -134,31 +135,57 @@ def estimate_frame_gravity(depth_m: np.ndarray, camera: Camera, grid_step: int, 
     return estimate_gravity(grid, seed=seed)
 
 
-def visible_faces(
-    camera: Camera, cuboids: list[Cuboid], masks: list[np.ndarray] | None = None
-) -> tuple[np.ndarray, np.ndarray]:
+@njit(parallel=True, cache=True)
+def _zbuffer(fx, fy, cx, cy, height, width, cam_local, rots, halves, depth, owner):
+    """Nearest cuboid surface on every pixel's ray (the slab test of
+    :func:`cuboidcli.evaluation.raycast.ray_box_interval`, fused): fills depth (H, W) and owner (H, W)."""
+    for v in prange(height):
+        for u in range(width):
+            ray = ((u - cx) / fx, (v - cy) / fy, 1.0)
+            best = np.inf
+            who = -1
+            for k in range(rots.shape[0]):
+                z_in = -np.inf
+                z_out = np.inf
+                for a in range(3):
+                    d = rots[k, 0, a] * ray[0] + rots[k, 1, a] * ray[1] + rots[k, 2, a] * ray[2]
+                    o = cam_local[k, a]
+                    h = halves[k, a]
+                    if d == 0.0:
+                        if abs(o) > h:
+                            z_in = np.inf  # parallel to this slab and outside it: a miss
+                        continue
+                    t1 = (-h - o) / d
+                    t2 = (h - o) / d
+                    z_in = max(z_in, min(t1, t2))
+                    z_out = min(z_out, max(t1, t2))
+                hit = z_in if z_in > 0.0 else z_out
+                if z_in <= z_out and hit > 0.0 and hit < best:
+                    best = hit
+                    who = k
+            depth[v, u] = best
+            owner[v, u] = who
+
+
+def visible_faces(camera: Camera, cuboids: list[Cuboid]) -> tuple[np.ndarray, np.ndarray]:
     """Which cuboid's surface each pixel sees first, and at which depth: (owner (H, W) int32, -1 = none;
     depth (H, W) metres, inf = none).
 
-    Every cuboid is ray cast (:func:`cuboidcli.evaluation.raycast.ray_box_interval`): from outside a box the
-    visible surface is where the ray enters it, from inside (a room box around the camera) where it leaves;
-    the nearest surface of all cuboids wins (a z-buffer; the earlier cuboid on a tie). ``masks`` (one
-    (H, W) bool per cuboid, the pixels whose ray meets it, e.g. the coverage hulls) restrict the casting.
+    Every pixel's ray is cast against every cuboid (the slab test of
+    :func:`cuboidcli.evaluation.raycast.ray_box_interval`): from outside a box the visible surface is where
+    the ray enters it, from inside (a room box around the camera) where it leaves; the nearest surface of
+    all cuboids wins (a z-buffer; the earlier cuboid on an exact tie).
     """
     h, w = camera.height, camera.width
-    rays = pixel_rays(camera).reshape(-1, 3)
-    depth = np.full(h * w, np.inf)
-    owner = np.full(h * w, -1, dtype=np.int32)
-    for k, cuboid in enumerate(cuboids):
-        idx = np.arange(h * w) if masks is None else np.flatnonzero(masks[k])
-        if idx.size == 0:
-            continue
-        z_in, z_out = ray_box_interval(rays[idx], cuboid)
-        hit = np.where(z_in > 0, z_in, z_out)
-        nearer = (z_in <= z_out) & (hit > 0) & (hit < depth[idx])
-        depth[idx[nearer]] = hit[nearer]
-        owner[idx[nearer]] = k
-    return owner.reshape(h, w), depth.reshape(h, w)
+    depth = np.full((h, w), np.inf)
+    owner = np.full((h, w), -1, dtype=np.int32)
+    if not cuboids:
+        return owner, depth
+    rots = np.stack([c.rotation for c in cuboids])
+    halves = np.stack([c.half_size for c in cuboids])
+    cam_local = np.stack([-c.rotation.T @ c.center for c in cuboids])  # camera centre in each box frame
+    _zbuffer(camera.fx, camera.fy, camera.cx, camera.cy, h, w, cam_local, rots, halves, depth, owner)
+    return owner, depth
 
 
 def support_counts(
@@ -167,7 +194,6 @@ def support_counts(
     cuboids: list[Cuboid],
     labels: np.ndarray,
     tolerance_m: float,
-    masks: list[np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
     """(visible pixels, supported pixels), each (M,) int, of the M cuboids' visible faces.
 
@@ -181,7 +207,7 @@ def support_counts(
     m = len(cuboids)
     if m == 0:
         return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-    owner, face = visible_faces(camera, cuboids, masks)
+    owner, face = visible_faces(camera, cuboids)
     valid = valid_depth(depth_m)
     ray_len = np.linalg.norm(pixel_rays(camera), axis=-1)
     with np.errstate(invalid="ignore"):
@@ -240,7 +266,6 @@ def shape_metrics(
     fit_gravity: Gravity | None = None,
     known: Reference | None = None,
     estimate: tuple[int, int] | None = (8, 0),
-    masks: list[np.ndarray] | None = None,
 ) -> ShapeMetrics:
     """The shape measurements of one frame (module docstring).
 
@@ -273,7 +298,7 @@ def shape_metrics(
     if ref.up is not None:
         for k, c in enumerate(cuboids):
             ang_g[k], ang_m[k] = axis_angles(c.rotation, ref.up, ref.frame)
-    visible, supported = support_counts(depth_m, camera, cuboids, labels, tolerance_m, masks)
+    visible, supported = support_counts(depth_m, camera, cuboids, labels, tolerance_m)
     out = ShapeMetrics(
         reference=ref.source,
         angle_gravity_deg=ang_g,
