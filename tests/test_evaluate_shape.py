@@ -442,3 +442,10 @@ def test_visible_faces_match_the_renderer_inside_and_outside_boxes():
     np.testing.assert_array_equal(owner, inst - 1)
     assert (owner == 1).sum() > 0.5 * owner.size
     np.testing.assert_allclose(face, depth, atol=1e-5)
+    # rays parallel to a box's sides: with the principal point on a pixel centre, the rays of its column
+    # and row have x = 0 (y = 0); a box beside that column and above that row must not be hit there
+    cam = Camera(fx=50.0, fy=50.0, cx=20.0, cy=15.0, width=41, height=31)
+    side = Cuboid([0.6, -0.6, 2.0], [0.3, 0.3, 0.3], np.eye(3))
+    owner, _ = visible_faces(cam, [side])
+    np.testing.assert_array_equal(owner, render_boxes([side], cam)[1] - 1)
+    assert (owner[:, 20] == -1).all() and (owner[15, :] == -1).all() and (owner == 0).sum() > 50
