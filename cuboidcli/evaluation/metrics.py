@@ -12,7 +12,7 @@ Aggregated over the frames of a run (as the paper): |M|, coverage and time are m
 is the mean of the per-frame means; OA "covered" the mean over frames with covered points; AUC is POOLED
 over all points of all frames, not averaged over frames.
 
-Two further measurements (computed by ``cuboids evaluate``; optional arguments of :func:`frame_metrics`):
+Further measurements (computed by ``cuboids evaluate``; optional arguments of :func:`frame_metrics`):
 
 - **Parsimony curve**: AUC@X and coverage of the first k cuboids in selection order (the order of the
   list), k = 1..K (K = ``config.max_cuboids``, or more if a frame has more cuboids). A frame with fewer than
@@ -27,6 +27,11 @@ Two further measurements (computed by ``cuboids evaluate``; optional arguments o
   valid points while >= 50 % of the cuboid's assigned points lie on the object. Recall = explained /
   eligible objects; precision = cuboids that explain an eligible object / predicted cuboids; both pooled
   over frames.
+- **Shape** (``shape=True``, :mod:`.shape`): per cuboid the angle of its axes to the up vector and to the
+  room's Manhattan axes and the support of its visible faces by its inliers (the same assignment); per
+  frame the gravity error where the gravity is known. Pooled over the cuboids (medians, support mean)
+  and frames (gravity error) of a run by :func:`shape_summary` and :func:`gravity_summary`. With ground
+  truth also ``box_recall_iou25_pct`` / ``box_precision_iou25_pct`` (the IoU 0.25 matching, renamed).
 
 Frames with no cuboid (counted in ``frames_without_cuboids``): there is no surface, so every point counts
 with zero recall, in the pooled AUC (its distance is infinite there) and in the object and ground-truth
