@@ -43,9 +43,22 @@ def _parse_list(text: str, what: str, cast=float) -> list:
 
 
 def _config(
-    preset, sampler, solver, hypotheses, max_cuboids, grid_step, no_oai, refine, fast, auc, seed, device
+    preset,
+    sampler,
+    solver,
+    hypotheses,
+    max_cuboids,
+    grid_step,
+    no_oai,
+    refine,
+    fast,
+    auc,
+    seed,
+    device,
+    align=None,
 ):
     from cuboidcli.evaluation.presets import PRESETS, resolve
+    from cuboidcli.fitting.config import ALIGN_MODES
 
     config, auc_cm, applied = resolve(preset)
     overrides = {"seed": seed, "device": resolve_device(device)}
@@ -77,6 +90,10 @@ def _config(
         overrides["refine"] = refine
     if fast:
         overrides["prescore_points"] = 600
+    if align is not None:
+        if align not in ALIGN_MODES:
+            fail(f"--align {align!r}: choose {', '.join(ALIGN_MODES)}")
+        overrides["align"] = align
     if auc is not None:
         auc_cm = tuple(_parse_list(auc, "--auc"))
         if any(x <= 0 for x in auc_cm):
@@ -139,6 +156,44 @@ def objects_table(report) -> Table | None:
     return _table(report, f"objects of the instance images ({n} frame{'' if n == 1 else 's'})", cols)
 
 
+def shape_table(report) -> Table | None:
+    """Axis angles against gravity / the room's axes and the support of the visible faces, if measured."""
+    if "support_median_pct" not in report.runs[0]:
+        return None
+    cols = [
+        ("axis_angle_gravity_median_deg", "∠up °", 1),
+        ("axis_angle_manhattan_median_deg", "∠room °", 1),
+        ("slabs", "slabs", 0),
+        ("slabs_within_3deg_pct", "slabs ≤3° %", 1),
+        ("support_median_pct", "support %", 1),
+        ("support_mean_pct", "mean %", 1),
+    ]
+    run = report.runs[0]
+    refs = ", ".join(
+        f"{src} {run.get(f'frames_gravity_{src}', 0)}"
+        for src in ("fit", "synthetic", "estimated", "none")
+        if run.get(f"frames_gravity_{src}", 0)
+    )
+    return _table(report, f"shape: medians over cuboids; axes of: {refs}", cols)
+
+
+def gravity_table(report) -> Table | None:
+    """Error of the gravity estimate on frames with a known gravity (synthetic data), if any."""
+    if "frames_with_known_gravity" not in report.runs[0]:
+        return None
+    cols = [
+        ("gravity_error_median_deg", "median °", 2),
+        ("gravity_error_max_deg", "max °", 2),
+        ("gravity_within_2deg_pct", "≤2° %", 1),
+        ("gravity_estimates_missing", "no estimate", 0),
+    ]
+    of_fit = sum(1 for m in report.frames[0] if m.shape is not None and m.shape.gravity_error_of == "fit")
+    whose = "fit" if of_fit else "depth estimate"
+    n = report.runs[0]["frames_with_known_gravity"]
+    title = f"gravity error, {whose} ({n} frame{'' if n == 1 else 's'})"
+    return _table(report, title, cols)
+
+
 def parsimony_table(report) -> Table | None:
     """The parsimony curve: AUC and coverage of the first k cuboids (selection order), mean ± std."""
     from cuboidcli.evaluation.metrics import auc_key
@@ -167,8 +222,9 @@ def _method_label(config, applied: list[str], fits: Path | None) -> str:
         return f"saved fits ({fits.name})"
     oai = "OAI" if config.occlusion_aware else "no OAI"
     refined = ", refined" if getattr(config, "refine", False) else ""
+    aligned = f", {config.align}-aligned" if getattr(config, "align", "free") != "free" else ""
     parts = [", ".join(applied)] if applied else []
-    return " / ".join(parts + [f"{config.sampler}, {config.solver}, {oai}{refined}"])
+    return " / ".join(parts + [f"{config.sampler}, {config.solver}, {oai}{refined}{aligned}"])
 
 
 def _running(ev) -> str:
@@ -242,13 +298,20 @@ def evaluate(
     depth_model: Path = typer.Option(
         None, "--depth-model", help="With --rgb: depth net .pt (built-in) or metric .onnx [default: shipped]."
     ),
+    align: str = typer.Option(
+        None,
+        "--align",
+        help="free (any rotation) | gravity (upright boxes, free yaw) | manhattan (the room's axes) "
+        "[default: free]. Gravity is estimated from each depth map.",
+    ),
     seed: int = typer.Option(0, "--seed", help="Seed of the first run."),
     device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
 ) -> None:
     """Fit every frame and report the paper's metrics: time, |M|, coverage, OA-L2 distances, AUC.
 
-    Also the parsimony curve (AUC and coverage of the first k cuboids) and, where the dataset has
-    instance images, object recall and precision (docs/evaluate.md).
+    Also the parsimony curve (AUC and coverage of the first k cuboids), the cuboids' axis angles to
+    gravity and the room's axes, the support of their visible faces, and, where the dataset has them,
+    object recall and precision (instance images) and the gravity error (known gravity) (docs/evaluate.md).
     """
     from cuboidcli.evaluation.outputs import write_outputs
     from cuboidcli.evaluation.runner import EvalSettings, load_frames
@@ -290,6 +353,7 @@ def evaluate(
             auc,
             seed,
             device,
+            align,
         )
         frame_list, dataset = load_frames(data, split, names, limit)
         settings = EvalSettings(
@@ -338,7 +402,14 @@ def evaluate(
                 fail(str(e))
         label = _method_label(config, applied, fits) + (" from RGB" if rgb else "")
         out.print(results_table(report, label))
-        for table in (gt_table(report), objects_table(report), parsimony_table(report)):
+        tables = (
+            gt_table(report),
+            objects_table(report),
+            shape_table(report),
+            gravity_table(report),
+            parsimony_table(report),
+        )
+        for table in tables:
             if table is not None:
                 out.print(table)
         empty = sum(r.get("frames_without_cuboids", 0) for r in report.runs)

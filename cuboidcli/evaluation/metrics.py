@@ -12,7 +12,7 @@ Aggregated over the frames of a run (as the paper): |M|, coverage and time are m
 is the mean of the per-frame means; OA "covered" the mean over frames with covered points; AUC is POOLED
 over all points of all frames, not averaged over frames.
 
-Two further measurements (computed by ``cuboids evaluate``; optional arguments of :func:`frame_metrics`):
+Further measurements (computed by ``cuboids evaluate``; optional arguments of :func:`frame_metrics`):
 
 - **Parsimony curve**: AUC@X and coverage of the first k cuboids in selection order (the order of the
   list), k = 1..K (K = ``config.max_cuboids``, or more if a frame has more cuboids). A frame with fewer than
@@ -27,6 +27,11 @@ Two further measurements (computed by ``cuboids evaluate``; optional arguments o
   valid points while >= 50 % of the cuboid's assigned points lie on the object. Recall = explained /
   eligible objects; precision = cuboids that explain an eligible object / predicted cuboids; both pooled
   over frames.
+- **Shape** (``shape=True``, :mod:`.shape`): per cuboid the angle of its axes to the up vector and to the
+  room's Manhattan axes and the support of its visible faces by its inliers (the same assignment); per
+  frame the gravity error where the gravity is known. Pooled over the cuboids (medians, support mean)
+  and frames (gravity error) of a run by :func:`shape_summary` and :func:`gravity_summary`. With ground
+  truth also ``box_recall_iou25_pct`` / ``box_precision_iou25_pct`` (the IoU 0.25 matching, renamed).
 
 Frames with no cuboid (counted in ``frames_without_cuboids``): there is no surface, so every point counts
 with zero recall, in the pooled AUC (its distance is infinite there) and in the object and ground-truth
@@ -50,12 +55,16 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.coverage import fill_convex, projected_hull
 from cuboidcli.evaluation.iou import greedy_matches, iou_matrix
 from cuboidcli.evaluation.oa import oa_distances, oa_sq_prefix_distances
+from cuboidcli.evaluation.shape import GRAVITY_GOOD_DEG, SOURCES, Reference, ShapeMetrics, shape_metrics
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.geometry.gravity import Gravity
 
 #: Default AUC upper bounds (cm): the paper's indoor values; outdoors it uses 50 and 10.
 AUC_CM = (20.0, 5.0)
 #: IoU thresholds of the ground-truth cuboid recall/precision.
 IOU_THRESHOLDS = (0.25, 0.5)
+#: The IoU threshold of ``box_recall_iou25_pct`` / ``box_precision_iou25_pct``.
+BOX_IOU = 0.25
 #: An object is eligible for object recall with at least this percentage of the frame's valid points.
 OBJECT_MIN_PCT = 1
 #: A cuboid explains an object when it holds at least this percentage of the object's points and at least
@@ -209,6 +218,8 @@ class FrameMetrics:
     """Parsimony curve: coverage (fraction) of the first k cuboids, k = 1..K; None when not computed."""
     prefix_auc: dict[float, list[AucStats]] | None = None
     """Parsimony curve: AUC statistics of the first k cuboids, k = 1..K, keyed by the threshold in cm."""
+    shape: ShapeMetrics | None = None
+    """Axis angles, support and the gravity error (:mod:`.shape`); None when not computed."""
     extras: dict = field(default_factory=dict)
 
     def row(self) -> dict:
@@ -231,8 +242,37 @@ class FrameMetrics:
             r["objects_eligible"] = self.objects.eligible
         r["points"] = self.n_points
         r["covered_points"] = self.n_covered_points
+        if self.gt_matches is not None and BOX_IOU in self.gt_matches:
+            r.update(box_rates(*self.gt_matches[BOX_IOU]))
+        if self.shape is not None:
+            r["gravity_ref"] = self.shape.reference
+            r.update(shape_summary([self.shape]))
+            if self.shape.gravity_error_of:
+                r["gravity_error_deg"] = self.shape.gravity_error_deg
+                r["gravity_error_of"] = self.shape.gravity_error_of
         r.update(self.extras)
         return r
+
+    def cuboid_rows(self) -> list[dict]:
+        """One row per predicted cuboid (selection order) with its shape measurements; [] without them."""
+        s = self.shape
+        if s is None:
+            return []
+        support = s.support
+        return [
+            {
+                "frame": self.name,
+                "cuboid": k,
+                "axis_angle_gravity_deg": float(s.angle_gravity_deg[k]),
+                "axis_angle_manhattan_deg": float(s.angle_manhattan_deg[k]),
+                "slab": bool(s.slab[k]),
+                "visible_px": int(s.visible_px[k]),
+                "supported_px": int(s.supported_px[k]),
+                "support_pct": 100.0 * float(support[k]),
+                "gravity_ref": s.reference,
+            }
+            for k in range(len(s.slab))
+        ]
 
 
 def auc_key(threshold_cm: float) -> str:
@@ -244,6 +284,56 @@ def object_rates(explained: int, eligible: int, explaining: int, predicted: int)
     return {
         "object_recall_pct": 100.0 * explained / eligible if eligible else math.nan,
         "object_precision_pct": 100.0 * explaining / predicted if predicted else math.nan,
+    }
+
+
+def box_rates(matched: int, n_gt: int, n_pred: int) -> dict:
+    """Ground-truth box recall and precision at IoU :data:`BOX_IOU` in % (NaN with a zero denominator)."""
+    return {
+        "box_recall_iou25_pct": 100.0 * matched / n_gt if n_gt else math.nan,
+        "box_precision_iou25_pct": 100.0 * matched / n_pred if n_pred else math.nan,
+    }
+
+
+def _median(values) -> float:
+    v = np.asarray(values, dtype=np.float64)
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if v.size else math.nan
+
+
+def shape_summary(shapes: list[ShapeMetrics]) -> dict:
+    """Axis angles, slab alignment and support pooled over the cuboids of ``shapes`` (frames), in reporting
+    units: medians over all cuboids with a defined value (NaN when none)."""
+    ang_g = np.concatenate([s.angle_gravity_deg for s in shapes])
+    ang_m = np.concatenate([s.angle_manhattan_deg for s in shapes])
+    support = np.concatenate([s.support for s in shapes])
+    support = support[np.isfinite(support)]
+    slabs = sum(s.slabs_measured for s in shapes)
+    return {
+        "axis_angle_gravity_median_deg": _median(ang_g),
+        "axis_angle_manhattan_median_deg": _median(ang_m),
+        "slabs": slabs,
+        "slabs_within_3deg_pct": 100.0 * sum(s.slabs_aligned for s in shapes) / slabs if slabs else math.nan,
+        "support_median_pct": 100.0 * float(np.median(support)) if support.size else math.nan,
+        "support_mean_pct": 100.0 * float(support.mean()) if support.size else math.nan,
+    }
+
+
+def gravity_summary(shapes: list[ShapeMetrics]) -> dict:
+    """The gravity error over the frames with a known gravity (none: {}). A frame without a reliable
+    estimate counts in the denominator of the share within :data:`GRAVITY_GOOD_DEG` but not in the median
+    and maximum; it is counted in ``gravity_estimates_missing``."""
+    known = [s for s in shapes if s.gravity_error_of]
+    if not known:
+        return {}
+    err = np.array([s.gravity_error_deg for s in known], dtype=np.float64)
+    fin = err[np.isfinite(err)]
+    return {
+        "gravity_error_median_deg": float(np.median(fin)) if fin.size else math.nan,
+        "gravity_error_max_deg": float(fin.max()) if fin.size else math.nan,
+        "gravity_within_2deg_pct": 100.0 * float((fin <= GRAVITY_GOOD_DEG).sum()) / len(known),
+        "frames_with_known_gravity": len(known),
+        "gravity_estimates_missing": int(len(known) - fin.size),
     }
 
 
@@ -264,12 +354,19 @@ def frame_metrics(
     parsimony_k: int | None = None,
     instances: np.ndarray | None = None,
     config: FitConfig | None = None,
+    shape: bool = False,
+    fit_gravity: Gravity | None = None,
+    known_gravity: Reference | None = None,
 ) -> FrameMetrics:
     """All metrics of one frame: depth_m (H, W) metres (0 = missing), the frame's camera and cuboids.
 
     ``parsimony_k``: also compute the parsimony curve for k = 1..max(parsimony_k, len(cuboids)).
     ``instances`` (H, W) integer object ids (0 = none): also count object recall / precision, with the
     point-to-cuboid assignment of ``config`` (tau, beta, tau_c, occlusion_aware; default FitConfig()).
+    ``shape``: also measure axis angles, support and the gravity error (:func:`.shape.shape_metrics`)
+    against ``fit_gravity`` (the gravity the fit used) or ``known_gravity`` (the frame's true reference),
+    else a gravity estimated from the depth map with ``config``'s grid step and seed; the support uses the
+    same assignment and tolerates observed points up to sqrt(tau) in front of a face.
     """
     valid = valid_depth(depth_m)
     points = camera.backproject(np.where(valid, depth_m, 0.0))[valid]  # (N, 3)
@@ -311,17 +408,32 @@ def frame_metrics(
         for cm, full in auc_stats.items():
             curve = [AucStats.of(prefix_dist[:, k], cm / 100.0) for k in range(len(cuboids) - 1)]
             m.prefix_auc[cm] = curve + [full] * (pad + 1)
-    if instances is not None:
-        if instances.shape != depth_m.shape:
-            raise ValueError(
-                f"instance image is {instances.shape[1]}x{instances.shape[0]} but the depth map is "
-                f"{depth_m.shape[1]}x{depth_m.shape[0]}"
-            )
-        from cuboidcli.fitting.assign import assign_points
+    if instances is not None and instances.shape != depth_m.shape:
+        raise ValueError(
+            f"instance image is {instances.shape[1]}x{instances.shape[0]} but the depth map is "
+            f"{depth_m.shape[1]}x{depth_m.shape[0]}"
+        )
+    if instances is None and not shape:
+        return m
+    from cuboidcli.fitting.assign import assign_points
 
-        cfg = config or FitConfig()
-        labels = assign_points(points, cuboids, cfg.tau_sq_m2, cfg.beta, cfg.tau_c, cfg.occlusion_aware)
+    cfg = config or FitConfig()
+    labels = assign_points(points, cuboids, cfg.tau_sq_m2, cfg.beta, cfg.tau_c, cfg.occlusion_aware)
+    if instances is not None:
         m.objects = object_counts(labels, instances[valid], len(cuboids))
+    if shape:
+        label_img = np.full(depth_m.shape, -3, dtype=np.int32)
+        label_img[valid] = labels
+        m.shape = shape_metrics(
+            depth_m,
+            camera,
+            cuboids,
+            label_img,
+            math.sqrt(cfg.tau_sq_m2),
+            fit_gravity=fit_gravity,
+            known=known_gravity,
+            estimate=(cfg.grid_step, cfg.seed),
+        )
     return m
 
 
@@ -397,6 +509,15 @@ def aggregate(frames: list[FrameMetrics], curves: bool = True) -> dict:
     out["frames_with_gt"] = len(with_gt)
     if with_objects:
         out["frames_with_instances"] = len(with_objects)
+    box = [f.gt_matches[BOX_IOU] for f in with_gt if BOX_IOU in f.gt_matches]
+    if box:
+        out.update(box_rates(*(sum(c[i] for c in box) for i in range(3))))
+    shapes = [f.shape for f in frames if f.shape is not None]
+    if shapes:
+        out.update(shape_summary(shapes))
+        for source in SOURCES:
+            out[f"frames_gravity_{source}"] = sum(1 for s in shapes if s.reference == source)
+        out.update(gravity_summary(shapes))
     if curves and (curve := parsimony_curve(frames)) is not None:
         out["parsimony"] = curve
     return out

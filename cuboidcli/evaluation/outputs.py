@@ -1,4 +1,5 @@
-"""Output files of an evaluation: ``metrics.json`` (aggregates, rows, provenance) and ``frames.csv``."""
+"""Output files of an evaluation: ``metrics.json`` (aggregates, rows, provenance), ``frames.csv`` and
+``cuboids.csv``."""
 
 from __future__ import annotations
 
@@ -86,25 +87,17 @@ def frame_rows(report: EvalReport) -> list[dict]:
     ]
 
 
-def write_outputs(report: EvalReport, out_dir: str | os.PathLike, meta: dict | None = None) -> list[Path]:
-    """Write ``metrics.json`` (aggregates, per-frame rows, config, provenance) and ``frames.csv``."""
-    out_dir = Path(out_dir)
-    rows = frame_rows(report)
-    doc = {
-        "schema": "cuboids-eval/1",
-        "version": __version__,
-        **(meta or {}),
-        "config": report.config.to_dict(),
-        "auc_cm": list(report.settings.auc_cm),
-        "seeds": report.seeds,
-        "summary": {k: {"mean": m, "std": s} for k, (m, s) in report.summary.items()},
-        "runs": report.runs,
-        "frames": rows,
-        "failed_frames": report.failures,
-        "weights_sha256": report.weights,
-        "machine": machine_info(),
-    }
-    paths = [atomic_write_json(out_dir / "metrics.json", _clean(doc))]
+def cuboid_rows(report: EvalReport) -> list[dict]:
+    """One row per (run, frame, predicted cuboid) with its shape measurements, run index and seed first."""
+    return [
+        {"run": r, "seed": seed, **row}
+        for r, seed in enumerate(report.seeds)
+        for m in report.frames[r]
+        for row in m.cuboid_rows()
+    ]
+
+
+def _csv_text(rows: list[dict]) -> str:
     columns: list[str] = []
     for row in rows:
         columns += [k for k in row if k not in columns]
@@ -115,5 +108,32 @@ def write_outputs(report: EvalReport, out_dir: str | os.PathLike, meta: dict | N
         writer.writerow(
             {k: "" if isinstance(v, float) and not math.isfinite(v) else v for k, v in row.items()}
         )
-    paths.append(atomic_write_text(out_dir / "frames.csv", buf.getvalue()))
+    return buf.getvalue()
+
+
+def write_outputs(report: EvalReport, out_dir: str | os.PathLike, meta: dict | None = None) -> list[Path]:
+    """Write ``metrics.json`` (aggregates, per-frame rows, per-cuboid rows, config, provenance),
+    ``frames.csv`` and, when the shape measurements were made, ``cuboids.csv``."""
+    out_dir = Path(out_dir)
+    rows = frame_rows(report)
+    per_cuboid = cuboid_rows(report)
+    doc = {
+        "schema": "cuboids-eval/1",
+        "version": __version__,
+        **(meta or {}),
+        "config": report.config.to_dict(),
+        "auc_cm": list(report.settings.auc_cm),
+        "seeds": report.seeds,
+        "summary": {k: {"mean": m, "std": s} for k, (m, s) in report.summary.items()},
+        "runs": report.runs,
+        "frames": rows,
+        "per_cuboid": per_cuboid,
+        "failed_frames": report.failures,
+        "weights_sha256": report.weights,
+        "machine": machine_info(),
+    }
+    paths = [atomic_write_json(out_dir / "metrics.json", _clean(doc))]
+    paths.append(atomic_write_text(out_dir / "frames.csv", _csv_text(rows)))
+    if per_cuboid:
+        paths.append(atomic_write_text(out_dir / "cuboids.csv", _csv_text(per_cuboid)))
     return paths

@@ -21,7 +21,9 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.metrics import AUC_CM, FrameMetrics, aggregate, frame_metrics, mean_std
 from cuboidcli.evaluation.outputs import weights_hashes
+from cuboidcli.evaluation.shape import Reference, gravity_from_saved, synthetic_reference
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.geometry.gravity import Gravity
 from cuboidcli.io.depth import InputError
 from cuboidcli.io.result import read_result, write_result
 from cuboidcli.scaleout import Outcome, Summary, failed, run_tasks
@@ -38,6 +40,14 @@ class EvalFrame(Protocol):
     def gt_cuboids(self) -> list[Cuboid] | None: ...
 
     # optional: ``instances() -> np.ndarray | None``, per-pixel object ids (H, W), 0 = no object
+    # optional: ``gt_world_from_camera() -> np.ndarray | None``, the known z-up world pose (synthetic data)
+
+
+def _known_gravity(frame: EvalFrame) -> Reference | None:
+    """The frame's true up vector and room axes where it has them (synthetic frames), else None."""
+    read = getattr(frame, "gt_world_from_camera", None)
+    pose = read() if callable(read) else None
+    return None if pose is None else synthetic_reference(pose)
 
 
 def _instances(frame: EvalFrame) -> np.ndarray | None:
@@ -228,8 +238,9 @@ def _fit_and_save(
     save_fits_dir: Path | None,
     rgb: bool = False,
     depth_model: Path | None = None,
-) -> tuple[list[Cuboid], dict]:
-    """Run the estimator on one frame, optionally save its "cuboids/1" result: (cuboids, timing_s).
+) -> tuple[list[Cuboid], dict, Gravity | None]:
+    """Run the estimator on one frame, optionally save its "cuboids/1" result: (cuboids, timing_s, the
+    gravity the fit used or estimated, ``FitInfo.gravity``).
 
     With ``rgb`` the estimator fits the depth predicted from the frame's image (``depth_m`` is unused)
     and ``timing_s["total"]`` includes the depth estimation (``timing_s["depth"]``).
@@ -261,7 +272,7 @@ def _fit_and_save(
             {"weights": None if weights_dir is None else str(weights_dir)},
         )
         write_result(Path(save_fits_dir) / f"seed{config.seed}" / f"{frame.name}.json", result)
-    return cuboids, dict(info.timing_s)
+    return cuboids, dict(info.timing_s), info.gravity
 
 
 def evaluate_frame(
@@ -276,9 +287,11 @@ def evaluate_frame(
 ) -> FrameMetrics:
     """Fit (or load from ``fits_dir``) the cuboids of one frame and compute its metrics.
 
-    Besides the paper's metrics: the parsimony curve up to ``config.max_cuboids`` and, where the frame has
+    Besides the paper's metrics: the parsimony curve up to ``config.max_cuboids``; where the frame has
     an instance image, object recall / precision with ``config``'s point-to-cuboid assignment (for saved
-    fits, the settings recorded in the file take precedence: :func:`_scoring_config`).
+    fits, the settings recorded in the file take precedence: :func:`_scoring_config`); the shape
+    measurements (axis angles against the fit's gravity, else the frame's known one, else one estimated
+    from its depth; support; the gravity error where the gravity is known: :mod:`.shape`).
     Time is the estimator's ``timing_s["total"]`` (input loaded -> cuboids selected; metrics excluded),
     or the saved file's when evaluating saved fits. With ``rgb`` the cuboids are fitted to the depth
     estimated from the image and scored against the frame's true depth.
@@ -297,8 +310,11 @@ def evaluate_frame(
             raise InputError(f"frame {frame.name}: cannot read saved fit {path}: {e}") from e
         cuboids, timing = saved.cuboids, saved.timing_s
         config = _scoring_config(config, saved.settings if isinstance(saved.settings, dict) else {})
+        gravity = gravity_from_saved(saved.extras.get("gravity"))
     else:
-        cuboids, timing = _fit_and_save(frame, depth, config, weights_dir, save_fits_dir, rgb, depth_model)
+        cuboids, timing, gravity = _fit_and_save(
+            frame, depth, config, weights_dir, save_fits_dir, rgb, depth_model
+        )
     total = timing.get("total")
     return frame_metrics(
         frame.name,
@@ -311,11 +327,23 @@ def evaluate_frame(
         parsimony_k=config.max_cuboids,
         instances=_instances(frame),
         config=config,
+        shape=True,
+        fit_gravity=gravity,
+        known_gravity=_known_gravity(frame),
     )
 
 
-#: Settings of a saved fit that its scoring uses (parsimony length and the point-to-cuboid assignment).
-_SCORING_SETTINGS = ("max_cuboids", "tau_sq_m2", "beta", "tau_c_sq_m2", "occlusion_aware")
+#: Settings of a saved fit that its scoring uses (parsimony length, the point-to-cuboid assignment, and the
+#: grid step and seed of the gravity estimate of a fit that had none).
+_SCORING_SETTINGS = (
+    "max_cuboids",
+    "tau_sq_m2",
+    "beta",
+    "tau_c_sq_m2",
+    "occlusion_aware",
+    "grid_step",
+    "seed",
+)
 
 
 def _scoring_config(config: FitConfig, saved_settings: dict) -> FitConfig:
@@ -326,7 +354,10 @@ def _scoring_config(config: FitConfig, saved_settings: dict) -> FitConfig:
         if key not in saved_settings:
             continue
         value = saved_settings[key]
-        if key == "max_cuboids" and isinstance(value, int) and not isinstance(value, bool) and value >= 1:
+        if key in ("max_cuboids", "grid_step") and isinstance(value, int) and not isinstance(value, bool):
+            if value >= 1:
+                over[key] = value
+        elif key == "seed" and isinstance(value, int) and not isinstance(value, bool):
             over[key] = value
         elif key == "occlusion_aware" and isinstance(value, bool):
             over[key] = value

@@ -8,7 +8,8 @@ Layout (the names of frames are file stems)::
                             (or camera.json: one entry for all frames)
       depth/<name>.png      uint16 depth, depth_scale metres per unit (default 0.001); or .npy in metres
       rgb/<name>.png|.jpg   optional colour image, registered to depth
-      cuboids/<name>.json   optional ground-truth cuboids ("cuboids/1")
+      cuboids/<name>.json   optional ground-truth cuboids ("cuboids/1"); its optional
+                            "world_from_camera" (4x4, z-up world) gives the known gravity
       instances/<name>.png  optional per-pixel instance ids (uint16, 0 = none)
       splits.json           optional {"train": [names], "val": [...], "test": [...]}
 
@@ -67,6 +68,29 @@ class Frame:
         from cuboidcli.io.result import read_result
 
         return None if self.cuboids_path is None else read_result(self.cuboids_path).cuboids
+
+    def gt_world_from_camera(self) -> np.ndarray | None:
+        """The known camera pose in a z-up world (4, 4) from the ground-truth file's ``world_from_camera``
+        (``cuboids synth`` writes the room frame there), or None. A file with a ``gravity`` entry is a
+        fit whose pose was estimated, not ground truth: None as well."""
+        if self.cuboids_path is None:
+            return None
+        from cuboidcli.io.result import read_result
+
+        extras = read_result(self.cuboids_path).extras
+        pose = extras.get("world_from_camera")
+        if pose is None or "gravity" in extras:
+            return None
+        try:
+            m = np.asarray(pose, dtype=np.float64)
+        except (TypeError, ValueError):
+            return None
+        if m.shape not in ((4, 4), (3, 4), (3, 3)) or not np.all(np.isfinite(m)):
+            return None
+        rot = m[:3, :3]
+        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-4):
+            return None
+        return m
 
 
 def _load_cameras(root: Path) -> tuple[dict[str, dict], dict | None]:
