@@ -206,7 +206,7 @@ class Fitter:
     ) -> None:
         from cuboidcli.bundles import default_weights_dir, shipped_path
         from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
-        from cuboidcli.fitting.sampling import make_sampler
+        from cuboidcli.sampling import make_sampler
 
         unknown = sorted(set(settings) - set(SETTINGS))
         if unknown:

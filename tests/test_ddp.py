@@ -124,8 +124,8 @@ def finetune_setup(tmp_path_factory):
     from cuboidcli.camera import Camera
     from cuboidcli.depth.net import DepthNet, DepthNetConfig
     from cuboidcli.depth.net import checkpoint_dict as depth_checkpoint
-    from cuboidcli.learn.sampler_net import SamplerNet, SamplerNetConfig
-    from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
+    from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
+    from cuboidcli.nets.sampler import checkpoint_dict as sampler_checkpoint
 
     camera = Camera.preset("nyu").scaled(0.25)
     root = tmp_path_factory.mktemp("ddp_finetune")
@@ -150,7 +150,7 @@ TINY_FINETUNE_RUN += ["--lr", "0", "--depth-lr", "1e-3", "--seed", "4", "--backe
 
 def test_torchrun_two_processes_finetune(tmp_path, finetune_setup):
     from cuboidcli.learn.finetune import DEPTH_NAME
-    from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
+    from cuboidcli.sampling.learned import WEIGHTS_NAME as SAMPLER_NAME
 
     out = tmp_path / "run"
     args = ["train", "finetune", finetune_setup / "data", *TINY_FINETUNE_RUN]

@@ -18,11 +18,11 @@ from cuboidcli.learn.finetune import (
     predicted_grid,
     scene_loss,
 )
-from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
-from cuboidcli.learn.sampler_net import SamplerNet, SamplerNetConfig
-from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
 from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig
 from cuboidcli.learn.solver_net import checkpoint_dict as solver_checkpoint
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
+from cuboidcli.nets.sampler import checkpoint_dict as sampler_checkpoint
+from cuboidcli.sampling.learned import WEIGHTS_NAME as SAMPLER_NAME
 from cuboidcli.solvers.implicit import polished
 from cuboidcli.solvers.numerical import NumericalSolver
 from tests.conftest import write_room_dataset
@@ -167,7 +167,7 @@ def test_finetune_writes_weights_and_resumes(tmp_path, rgbd_dataset, weights):
         assert set(ckpt) >= {"config", "state_dict", "meta"}
     # the fine-tuned depth network differs from its start; the files load where fit loads them
     from cuboidcli.depth.estimator import BuiltinDepthEstimator
-    from cuboidcli.learn.sampler_net import LearnedSampler
+    from cuboidcli.sampling.learned import LearnedSampler
     from cuboidcli.solvers.neural import NeuralSolver
 
     start = torch.load(weights / "depth.pt", weights_only=True)["state_dict"]

@@ -1,4 +1,4 @@
-"""The sampling-weight network and its Sampler (cuboidcli.learn.sampler_net), with tiny random nets."""
+"""The sampling-weight network (cuboidcli.nets.sampler) and its Sampler (cuboidcli.sampling.learned)."""
 
 import pytest
 import torch
@@ -6,15 +6,9 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth, prepare_points
-from cuboidcli.fitting.sampling import SamplingContext, make_sampler
-from cuboidcli.learn.sampler_net import (
-    WEIGHTS_NAME,
-    LearnedSampler,
-    SamplerNet,
-    SamplerNetConfig,
-    checkpoint_dict,
-    net_from_checkpoint,
-)
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig, checkpoint_dict, net_from_checkpoint
+from cuboidcli.sampling import SamplingContext, make_sampler
+from cuboidcli.sampling.learned import WEIGHTS_NAME, LearnedSampler
 from tests.conftest import simple_room
 
 TINY = SamplerNetConfig(width=16, blocks=1, upsample=2)

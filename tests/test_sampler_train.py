@@ -9,7 +9,6 @@ import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.fitting.pipeline import prepare_points
-from cuboidcli.fitting.sampling import SamplingContext
 from cuboidcli.geometry.kernels import oai_per_cuboid
 from cuboidcli.learn.sampler_loss import (
     LossParams,
@@ -23,14 +22,10 @@ from cuboidcli.learn.sampler_loss import (
     occlusion_threshold,
     set_log_prob,
 )
-from cuboidcli.learn.sampler_net import (
-    WEIGHTS_NAME,
-    LearnedSampler,
-    SamplerNet,
-    SamplerNetConfig,
-    grid_inputs,
-)
 from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler, train_scene
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
+from cuboidcli.sampling import SamplingContext
+from cuboidcli.sampling.learned import WEIGHTS_NAME, LearnedSampler, grid_inputs
 from cuboidcli.solvers.numerical import NumericalSolver
 from tests.conftest import simple_room, write_room_dataset
 

@@ -37,7 +37,7 @@ def weights_hashes(config: FitConfig, weights: Path | None) -> dict[str, dict]:
 
         files["solver"] = resolve_weights(weights_for("solver", weights))
     if config.sampler == "learned":
-        from cuboidcli.learn.sampler_net import weights_path
+        from cuboidcli.sampling.learned import weights_path
 
         path = weights_path(weights_for("sampler", weights))
         files[f"sampler:{path.name}"] = path

@@ -174,7 +174,7 @@ def check_estimator(config: FitConfig, weights_dir: Path | None = None) -> None:
     """Build the configured solver and sampler once, so that a bad setting or missing weights fails before
     any frame is evaluated (raises InputError with a one-line message)."""
     from cuboidcli.fitting.pipeline import make_solver
-    from cuboidcli.fitting.sampling import make_sampler
+    from cuboidcli.sampling import make_sampler
 
     try:
         make_solver(config, weights_dir, None, config.device)

@@ -19,17 +19,17 @@ from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import OCCLUDED
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.sampling import (
+from cuboidcli.fitting.scoring import ScoreParams, select_best
+from cuboidcli.fitting.winner import Alignment, align_winner, refine_winner, values_one
+from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
+from cuboidcli.geometry.kernels import combine
+from cuboidcli.sampling import (
     Sampler,
     SamplingContext,
     draw_hypotheses,
     local_fraction_of,
     make_sampler,
 )
-from cuboidcli.fitting.scoring import ScoreParams, select_best
-from cuboidcli.fitting.winner import Alignment, align_winner, refine_winner, values_one
-from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
-from cuboidcli.geometry.kernels import combine
 from cuboidcli.solvers.base import CuboidSolver, SizeBounds
 
 INVALID = -3
@@ -150,7 +150,7 @@ def ensure_compiled() -> None:
     init = np.zeros((1, 9))
     init[0, 6:] = 0.1
     adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy())
-    from cuboidcli.fitting.proposals import ball_minimal_sets
+    from cuboidcli.sampling.proposals import ball_minimal_sets
 
     ball_minimal_sets(
         torch.tensor([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]]),

@@ -70,7 +70,6 @@ from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.fused import cuboid_values
 from cuboidcli.fitting.pipeline import fit_depth, prepare_points
-from cuboidcli.fitting.sampling import draw_sets_and_maps
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import load_net, read_checkpoint
@@ -84,12 +83,14 @@ from cuboidcli.learn.sampler_loss import (
     inlier_masking_loss,
     set_log_prob,
 )
-from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
-from cuboidcli.learn.sampler_net import LearnedSampler, SamplerNet
-from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
-from cuboidcli.learn.sampler_net import net_from_checkpoint as sampler_from_checkpoint
-from cuboidcli.learn.sampler_net import weights_path as sampler_weights_path
 from cuboidcli.learn.sampler_train import draw_seed
+from cuboidcli.nets.sampler import SamplerNet
+from cuboidcli.nets.sampler import checkpoint_dict as sampler_checkpoint
+from cuboidcli.nets.sampler import net_from_checkpoint as sampler_from_checkpoint
+from cuboidcli.sampling import draw_sets_and_maps
+from cuboidcli.sampling.learned import WEIGHTS_NAME as SAMPLER_NAME
+from cuboidcli.sampling.learned import LearnedSampler
+from cuboidcli.sampling.learned import weights_path as sampler_weights_path
 
 STATE_KIND = "finetune-state"
 SOLVER_NAME = "solver_v2.pt"

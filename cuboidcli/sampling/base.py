@@ -2,7 +2,7 @@
 
 A sampler returns Q sampling distributions over the fitting points and a selection distribution q over
 them. A hypothesis first picks a distribution by q, then draws its C points from it with replacement.
-Uniform sampling has Q = 1; the learned sampler (Q = 4) lives in :mod:`cuboidcli.learn`.
+Uniform sampling has Q = 1; the learned sampler (Q = 4) is in :mod:`cuboidcli.sampling.learned`.
 """
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ class SequentialSampler:
 
 class LocalSampler(SequentialSampler):
     """Sequential-RANSAC weights for the first point; every minimal set localised in a 3D ball around it
-    (``local_fraction`` 1, whatever the configuration says; see :mod:`cuboidcli.fitting.proposals`)."""
+    (``local_fraction`` 1, whatever the configuration says; see :mod:`cuboidcli.sampling.proposals`)."""
 
     name = "local"
     local_fraction = 1.0
@@ -125,7 +125,7 @@ def draw_hypotheses(
     """One batch of minimal sets: the first ``round(local_fraction * hypotheses)`` localised (first point
     from the sampler's maps, the others from a 3D ball around it), the rest global (all C points from the
     maps, the paper's sets). Returns (maps (H,), indices (H, C), local (H,) bool), all on the CPU."""
-    from cuboidcli.fitting.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
+    from cuboidcli.sampling.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
 
     frac = local_fraction_of(sampler, local_fraction)
     n_local = min(max(round(frac * hypotheses), 0), hypotheses)
@@ -150,18 +150,3 @@ def draw_hypotheses(
     local = torch.zeros(hypotheses, dtype=torch.bool)
     local[:n_local] = True
     return maps, idx, local
-
-
-def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:
-    if name == "uniform":
-        return UniformSampler()
-    if name == "sequential":
-        return SequentialSampler()
-    if name == "local":
-        return LocalSampler()
-    if name == "learned":
-        from cuboidcli.bundles import weights_for
-        from cuboidcli.learn.sampler_net import LearnedSampler
-
-        return LearnedSampler.load(weights_for("sampler", weights_dir), device=device)
-    raise ValueError(f"unknown sampler {name!r}; choose uniform, sequential, local or learned")
