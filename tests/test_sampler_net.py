@@ -6,7 +6,8 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth, prepare_points
-from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig, checkpoint_dict, net_from_checkpoint
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig, net_from_checkpoint
 from cuboidcli.sampling import SamplingContext, make_sampler
 from cuboidcli.sampling.learned import WEIGHTS_NAME, LearnedSampler
 from tests.conftest import simple_room

@@ -5,7 +5,7 @@ uint8 RGB image and ``camera`` its intrinsics (``camera.width x camera.height ==
 metres, float32 ``(H, W)`` at the image's full resolution; 0 marks pixels without a usable estimate. The
 fitting pipeline subsamples this map to its fitting grid (every 8th pixel) itself.
 
-- :class:`BuiltinDepthEstimator`: the project's own network (:mod:`cuboidcli.depth.net`), weights in
+- :class:`BuiltinDepthEstimator`: the project's own network (:mod:`cuboidcli.nets.depth`), weights in
   ``models/depth_v3.pt``.
 - :class:`OnnxDepthEstimator`: a user's monocular network exported to ONNX. Expected tensors:
 
@@ -33,7 +33,7 @@ import numpy as np
 import torch
 
 from cuboidcli.camera import Camera
-from cuboidcli.depth.net import IMAGENET_MEAN, IMAGENET_STD, DepthNet, net_from_checkpoint
+from cuboidcli.nets.depth import IMAGENET_MEAN, IMAGENET_STD, DepthNet, net_from_checkpoint
 
 KINDS = ("metric", "relative", "relative-inverse")
 

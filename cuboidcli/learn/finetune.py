@@ -84,8 +84,8 @@ from cuboidcli.learn.sampler_loss import (
     set_log_prob,
 )
 from cuboidcli.learn.sampler_train import draw_seed
+from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet
-from cuboidcli.nets.sampler import checkpoint_dict as sampler_checkpoint
 from cuboidcli.nets.sampler import net_from_checkpoint as sampler_from_checkpoint
 from cuboidcli.sampling import draw_sets_and_maps
 from cuboidcli.sampling.learned import WEIGHTS_NAME as SAMPLER_NAME
@@ -272,7 +272,7 @@ def load_nets(cfg: FinetuneConfig, sampler_weights=None, solver_weights=None, de
     depth = None
     if cfg.rgb:
         from cuboidcli.depth.estimator import default_weights_path
-        from cuboidcli.depth.net import net_from_checkpoint
+        from cuboidcli.nets.depth import net_from_checkpoint
 
         dpath = Path(depth_weights) if depth_weights is not None else default_weights_path()
         if not dpath.is_file():
@@ -406,14 +406,10 @@ def validate(
 
 
 def _weights_files(nets: Nets, out_dir: Path, meta: dict) -> None:
-    atomic_torch_save(sampler_checkpoint(nets.sampler, meta), out_dir / SAMPLER_NAME)
+    atomic_torch_save(checkpoint_dict(nets.sampler, meta), out_dir / SAMPLER_NAME)
     if nets.solver is not None:
-        from cuboidcli.learn.solver_net import checkpoint_dict
-
         atomic_torch_save(checkpoint_dict(nets.solver, meta), out_dir / SOLVER_NAME)
     if nets.depth is not None:
-        from cuboidcli.depth.net import checkpoint_dict
-
         atomic_torch_save(checkpoint_dict(nets.depth, meta), out_dir / DEPTH_NAME)
 
 

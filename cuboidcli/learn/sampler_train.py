@@ -61,7 +61,8 @@ from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
 from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, occlusion_threshold
-from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig, checkpoint_dict, parameter_count
+from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext
 from cuboidcli.sampling.learned import WEIGHTS_NAME, LearnedSampler, grid_inputs
 from cuboidcli.solvers.base import SizeBounds

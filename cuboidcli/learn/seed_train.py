@@ -35,7 +35,8 @@ from cuboidcli.fitting.winner import values_one
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.atomic import atomic_torch_save
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, prepare_scenes
-from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig, checkpoint_dict
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext, SequentialSampler, draw_hypotheses
 from cuboidcli.sampling.learned import grid_inputs
 from cuboidcli.solvers.base import SizeBounds

@@ -35,8 +35,9 @@ from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
-from cuboidcli.learn.solver_data import SyntheticBatch, SyntheticConfig, seeded_batch
-from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict, parameter_count
+from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
+from cuboidcli.nets.solver import SolverNet, SolverNetConfig
+from cuboidcli.solvers.synthetic import SyntheticBatch, SyntheticConfig, seeded_batch
 
 #: Seeds of the held-out validation sets live far from the training seeds (seed * 2^32 + iteration).
 VAL_SEED = 2**62 + 2024

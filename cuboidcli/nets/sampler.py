@@ -20,19 +20,23 @@ needs without a division. Weights are plain dicts ``{"config", "state_dict", "me
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
+
+from cuboidcli.nets.checkpoint import NetConfig, build_net
 
 #: Sampling priors the network's maps can be built on (see SamplerNetConfig.prior).
 PRIORS = ("none", "unexplained")
 
 
 @dataclass(frozen=True)
-class SamplerNetConfig:
+class SamplerNetConfig(NetConfig):
     """Shape of the network and its input normalisation."""
+
+    label = "sampler-net"
 
     maps: int = 4
     """Q: sampling-weight maps (4 in the paper)."""
@@ -68,17 +72,6 @@ class SamplerNetConfig:
             raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
         if not 0.0 < self.prior_floor <= 1.0:
             raise ValueError(f"prior_floor must be in (0, 1], got {self.prior_floor}")
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> SamplerNetConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown sampler-net config keys {sorted(unknown)}")
-        return cls(**d)
 
 
 def _conv_in_relu(cin: int, cout: int, stride: int = 1) -> nn.Sequential:
@@ -178,20 +171,6 @@ class SamplerNet(nn.Module):
         return SamplerOutput(log_p=log_p, p=log_p.exp(), log_q=log_q, q=log_q.exp(), log_p_free=log_p_free)
 
 
-def parameter_count(net: nn.Module) -> int:
-    return sum(p.numel() for p in net.parameters())
-
-
-def checkpoint_dict(net: SamplerNet, meta: dict | None = None) -> dict:
-    """The weights file format ``{"config", "state_dict", "meta"}``, loadable with ``weights_only=True``."""
-    state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
-    return {"config": net.config.to_dict(), "state_dict": state, "meta": dict(meta or {})}
-
-
 def net_from_checkpoint(ckpt: dict) -> SamplerNet:
-    """Rebuild the exact net of a :func:`checkpoint_dict` on the CPU, in eval mode."""
-    if not isinstance(ckpt, dict) or "config" not in ckpt or "state_dict" not in ckpt:
-        raise ValueError("not a sampler checkpoint: expected a dict with 'config' and 'state_dict'")
-    net = SamplerNet(SamplerNetConfig.from_dict(ckpt["config"]))
-    net.load_state_dict(ckpt["state_dict"])
-    return net.eval()
+    """Rebuild the exact net of a checkpoint dict, in eval mode, on the CPU."""
+    return build_net(ckpt, SamplerNet, SamplerNetConfig, "sampler")

@@ -1,7 +1,7 @@
 """Neural cuboid solver (paper Sec. 3.2.3): one forward pass of the regression network per batch of sets.
 
 Weights are plain dicts ``{"config", "state_dict", "meta"}`` loaded with ``torch.load(weights_only=True)``;
-see :mod:`cuboidcli.learn.solver_net`. The shipped weights live in ``models/`` beside their model card.
+see :mod:`cuboidcli.nets.solver`. The shipped weights live in ``models/`` beside their model card.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from torch import Tensor
 
 from cuboidcli.bundles import MODELS_DIR
 from cuboidcli.io.checkpoints import load_net
-from cuboidcli.learn.solver_net import SolverNet, net_from_checkpoint
+from cuboidcli.nets.solver import SolverNet, net_from_checkpoint
 from cuboidcli.solvers.base import SizeBounds
 
 #: Versioned default weights, in the shipped models folder (:data:`cuboidcli.bundles.MODELS_DIR`).

@@ -21,7 +21,7 @@ import torch
 from torch import Tensor
 
 from cuboidcli.io.atomic import atomic_write
-from cuboidcli.learn.solver_net import SolverNet
+from cuboidcli.nets.solver import SolverNet
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.neural import CHUNK_SETS, check_bounds, default_weights_path, load_solver_net
 
@@ -33,7 +33,7 @@ PARITY_TOL = 1e-4
 
 def _parity_sets(c: int = 6) -> list[Tensor]:
     """Fixed check inputs: realistic synthetic sets (B = 64) and one single set (B = 1), float32."""
-    from cuboidcli.learn.solver_data import SyntheticConfig, seeded_batch
+    from cuboidcli.solvers.synthetic import SyntheticConfig, seeded_batch
 
     data = SyntheticConfig(points=c)
     return [seeded_batch(64, data, seed=7).points, seeded_batch(1, data, seed=8).points]
