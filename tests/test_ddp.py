@@ -148,8 +148,7 @@ TINY_FINETUNE_RUN += ["--lr", "0", "--depth-lr", "1e-3", "--seed", "4", "--backe
 
 
 def test_torchrun_two_processes_finetune(tmp_path, finetune_setup):
-    from cuboidcli.learn.finetune import DEPTH_NAME
-    from cuboidcli.sampling.learned import WEIGHTS_NAME as SAMPLER_NAME
+    from cuboidcli.learn.finetune import DEPTH_NAME, SAMPLER_NAME
 
     out = tmp_path / "run"
     args = ["train", "finetune", finetune_setup / "data", *TINY_FINETUNE_RUN]

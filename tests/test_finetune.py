@@ -9,6 +9,7 @@ from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.learn.finetune import (
     DEPTH_NAME,
+    SAMPLER_NAME,
     SOLVER_NAME,
     FinetuneConfig,
     Nets,
@@ -21,7 +22,6 @@ from cuboidcli.learn.finetune import (
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.nets.solver import SolverNet, SolverNetConfig
-from cuboidcli.sampling.learned import WEIGHTS_NAME as SAMPLER_NAME
 from cuboidcli.solvers.implicit import polished
 from cuboidcli.solvers.numerical import NumericalSolver
 from tests.conftest import write_room_dataset

@@ -409,7 +409,7 @@ def evaluate(
     of a run could be evaluated."""
     if not frames:
         raise InputError("no frames to evaluate (check --split, --frames and --limit)")
-    from cuboidcli.bundles import check_weights_option, default_weights_dir
+    from cuboidcli.weights import check_weights_option, default_weights_dir
 
     if settings.fits_dir is None:
         check_weights_option(settings.weights_dir, config.solver, config.sampler)

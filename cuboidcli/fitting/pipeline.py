@@ -118,8 +118,8 @@ def make_solver(
 
         return NumericalSolver(bounds=bounds, lr=config.solver_lr, iters=config.solver_iters)
     if config.solver == "neural":
-        from cuboidcli.bundles import weights_for
         from cuboidcli.solvers.neural import NeuralSolver, resolve_weights
+        from cuboidcli.weights import weights_for
 
         weights = resolve_weights(weights_for("solver", weights_dir))
         return NeuralSolver(weights=weights, device=device, bounds=bounds)

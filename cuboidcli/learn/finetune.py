@@ -88,13 +88,12 @@ from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet
 from cuboidcli.nets.sampler import net_from_checkpoint as sampler_from_checkpoint
 from cuboidcli.sampling import draw_sets_and_maps
-from cuboidcli.sampling.learned import WEIGHTS_NAME as SAMPLER_NAME
 from cuboidcli.sampling.learned import LearnedSampler
-from cuboidcli.sampling.learned import weights_path as sampler_weights_path
+from cuboidcli.weights import FILES, resolve
 
 STATE_KIND = "finetune-state"
-SOLVER_NAME = "solver_v2.pt"
-DEPTH_NAME = "depth_v2.pt"
+#: The files it writes, in the layout ``--weights DIR`` reads.
+SAMPLER_NAME, SOLVER_NAME, DEPTH_NAME = FILES["sampler"], FILES["solver"], FILES["depth"]
 SOLVERS = ("neural", "numerical")
 
 
@@ -264,17 +263,16 @@ def load_nets(cfg: FinetuneConfig, sampler_weights=None, solver_weights=None, de
     """The pre-trained starting points (None = the shipped weights)."""
     from cuboidcli.solvers.neural import load_solver_net
 
-    path = sampler_weights_path(sampler_weights)
+    path = resolve("sampler", sampler_weights)
     if not path.is_file():
         raise FileNotFoundError(f"sampler weights {path} not found; train them with 'cuboids train sampler'")
     sampler = load_net(path, "sampler", sampler_from_checkpoint)
     solver = load_solver_net(solver_weights, "cpu") if cfg.solver == "neural" else None
     depth = None
     if cfg.rgb:
-        from cuboidcli.depth.estimator import default_weights_path
         from cuboidcli.nets.depth import net_from_checkpoint
 
-        dpath = Path(depth_weights) if depth_weights is not None else default_weights_path()
+        dpath = resolve("depth", depth_weights)
         if not dpath.is_file():
             raise FileNotFoundError(f"depth weights {dpath} not found; train them with 'cuboids train depth'")
         depth = load_net(dpath, "depth", net_from_checkpoint)

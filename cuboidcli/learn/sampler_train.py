@@ -64,9 +64,10 @@ from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, 
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext
-from cuboidcli.sampling.learned import WEIGHTS_NAME, LearnedSampler, grid_inputs
+from cuboidcli.sampling.learned import LearnedSampler, grid_inputs
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver
+from cuboidcli.weights import FILES
 
 STATE_KIND = "sampler-train-state"
 #: Rank r's draw seed is offset by r * RANK_SEED_STRIDE and a rank new to a resumed run's by the epoch times
@@ -421,7 +422,7 @@ class _Run:
                 "fit_config": self.fit.to_dict(),
                 "data": str(self.data),
             }
-            atomic_torch_save(checkpoint_dict(self.net, meta), self.out_dir / WEIGHTS_NAME)
+            atomic_torch_save(checkpoint_dict(self.net, meta), self.out_dir / FILES["sampler"])
 
 
 def train_sampler(
@@ -527,7 +528,7 @@ def _train(ctx, cfg, data, out_dir, net_cfg, fit, state, resume, emit, stop_afte
         "event": "end",
         "epochs_done": run.epoch,
         "best": run.best,
-        "weights": str(out_dir / WEIGHTS_NAME),
+        "weights": str(out_dir / FILES["sampler"]),
         "last": str(out_dir / "last.pt"),
         "seconds": time.perf_counter() - t_start,
     }

@@ -43,8 +43,8 @@ def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:
     if name == "local":
         return LocalSampler()
     if name == "learned":
-        from cuboidcli.bundles import weights_for
         from cuboidcli.sampling.learned import LearnedSampler
+        from cuboidcli.weights import weights_for
 
         return LearnedSampler.load(weights_for("sampler", weights_dir), device=device)
     raise ValueError(f"unknown sampler {name!r}; choose uniform, sequential, local or learned")

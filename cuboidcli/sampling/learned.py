@@ -7,19 +7,13 @@ state of the cuboids selected so far) and returns Q sampling-weight maps and sel
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import torch
 from torch import Tensor
 
-from cuboidcli.bundles import MODELS_DIR
 from cuboidcli.nets.sampler import SamplerNet, net_from_checkpoint
 from cuboidcli.sampling.base import SamplingContext
-
-#: Versioned file name of the sampler weights inside a weights folder.
-WEIGHTS_NAME = "sampler_v2.pt"
-#: The shipped weights, in the shipped models folder (:data:`cuboidcli.bundles.MODELS_DIR`).
-DEFAULT_WEIGHTS = MODELS_DIR / WEIGHTS_NAME
+from cuboidcli.weights import resolve
 
 
 def grid_inputs(ctx: SamplingContext) -> tuple[Tensor, Tensor, Tensor]:
@@ -38,15 +32,6 @@ def grid_inputs(ctx: SamplingContext) -> tuple[Tensor, Tensor, Tensor]:
     return depth.view(1, hs, ws), state.view(1, hs, ws), valid.view(1, hs, ws)
 
 
-def weights_path(weights_dir: str | os.PathLike | None) -> Path:
-    """Where the sampler weights are: a .pt file as given, ``<folder>/sampler_v2.pt``, or the shipped
-    ``models/sampler_v2.pt`` (``$CUBOIDS_SAMPLER_WEIGHTS`` overrides it) when None."""
-    if weights_dir is None:
-        return Path(os.environ.get("CUBOIDS_SAMPLER_WEIGHTS", DEFAULT_WEIGHTS))
-    path = Path(weights_dir)
-    return path if path.suffix == ".pt" else path / WEIGHTS_NAME
-
-
 class LearnedSampler:
     """Sampler (``name = "learned"``) backed by :class:`SamplerNet`: Q = config.maps distributions.
 
@@ -62,7 +47,9 @@ class LearnedSampler:
 
     @classmethod
     def load(cls, weights_dir: str | os.PathLike | None = None, device: str = "cpu") -> LearnedSampler:
-        path = weights_path(weights_dir)
+        """Load the weights a ``--weights`` value names (:func:`cuboidcli.weights.resolve`: a .pt file as
+        given, ``<folder>/sampler_v2.pt``, None: ``models/sampler_v2.pt`` or ``$CUBOIDS_SAMPLER_WEIGHTS``)."""
+        path = resolve("sampler", weights_dir)
         if not path.is_file():
             raise FileNotFoundError(
                 f"sampler weights {path} not found; train them with 'cuboids train sampler DATA' and pass "
