@@ -140,7 +140,7 @@ def ensure_compiled() -> None:
     global _COMPILED
     if _COMPILED:
         return
-    from cuboidcli.fitting.fused import cuboid_values, score_gains
+    from cuboidcli.geometry.fused import cuboid_values, score_gains
     from cuboidcli.solvers.adam_fused import adam_solve
 
     p = np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]])

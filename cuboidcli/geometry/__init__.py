@@ -1,3 +1,3 @@
 """Geometry kernels everything else builds on: rotations, point-to-cuboid distances, occlusion, inliers
-(torch, differentiable: :mod:`.kernels`), their numba building blocks for the fused CPU loops
-(:mod:`.numba_kernels`), and gravity (:mod:`.gravity`)."""
+(torch, differentiable: :mod:`.kernels`), the fused numba loops of the same on the CPU (:mod:`.fused`:
+hypothesis scoring, and the box helpers the fused solver shares), and gravity (:mod:`.gravity`)."""

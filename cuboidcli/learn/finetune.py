@@ -68,8 +68,8 @@ from torch import Tensor
 
 from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.fused import cuboid_values
 from cuboidcli.fitting.pipeline import fit_depth, prepare_points
+from cuboidcli.geometry.fused import cuboid_values
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import load_net, read_checkpoint

@@ -7,6 +7,9 @@ computed without materialising (H, N, 6, 3) tensors (the research code's 8.7 GB)
 sight in one interval, so a slab test finds the at most two occluding sides; f_I underflows far from the
 box. Pairs whose squared distance exceeds ``tau * (1 + 40 / beta)`` and which are not occluded get value 0
 instead of f_I < 1e-17. Tested against the torch reference kernels in :mod:`cuboidcli.geometry.kernels`.
+
+The numerical solver's fused loop (:mod:`cuboidcli.solvers.adam_fused`) shares :func:`camera_local` and
+:func:`slab_occlusion`; the scorer (:mod:`cuboidcli.fitting.scoring`) and assignment call the loops here.
 """
 
 from __future__ import annotations
@@ -15,8 +18,6 @@ import math
 
 import numpy as np
 from numba import njit, prange
-
-from cuboidcli.geometry.numba_kernels import camera_local, slab_occlusion
 
 
 @njit(cache=True, inline="always")
@@ -29,6 +30,46 @@ def _fo(d2, beta, inv_tau, tau_c, slope, offset):
     if d2 < tau_c:
         return 1.0 - _fi(d2, beta, inv_tau)
     return slope * d2 + offset
+
+
+@njit(cache=True)
+def slab_occlusion(l0, l1, l2, a0, a1, a2, c0, c1, c2):
+    """Sides of the box crossing the segment from a point (local l) to the camera (local c), lambda in (0, 1).
+
+    A convex box meets the segment in one interval [lam_in, lam_out]; the entry side occludes if
+    0 < lam_in < 1 and the exit side if 0 < lam_out < 1. Returns (occ_in, axis_in, sign_in, occ_out,
+    axis_out, sign_out). Equivalent to the paper's per-plane test (Eq. 6) except on measure-zero edge hits.
+    """
+    lam_in = -1e300
+    lam_out = 1e300
+    ax_in = -1
+    sg_in = 0.0
+    ax_out = -1
+    sg_out = 0.0
+    for k in range(3):
+        if k == 0:
+            lk, vk, ak = l0, c0 - l0, a0
+        elif k == 1:
+            lk, vk, ak = l1, c1 - l1, a1
+        else:
+            lk, vk, ak = l2, c2 - l2, a2
+        if abs(vk) < 1e-12:
+            if abs(lk) > ak:
+                return False, -1, 0.0, False, -1, 0.0
+            continue
+        inv = 1.0 / vk
+        t_pos = (ak - lk) * inv
+        t_neg = (-ak - lk) * inv
+        if t_pos < t_neg:
+            t_near, s_near, t_far, s_far = t_pos, 1.0, t_neg, -1.0
+        else:
+            t_near, s_near, t_far, s_far = t_neg, -1.0, t_pos, 1.0
+        if t_near > lam_in:
+            lam_in, ax_in, sg_in = t_near, k, s_near
+        if t_far < lam_out:
+            lam_out, ax_out, sg_out = t_far, k, s_far
+    hit = lam_in < lam_out
+    return hit and 0.0 < lam_in < 1.0, ax_in, sg_in, hit and 0.0 < lam_out < 1.0, ax_out, sg_out
 
 
 @njit(cache=True)
@@ -102,6 +143,16 @@ def leaky_constants(tau: float, beta: float, tau_c: float) -> tuple[float, float
     fi_c = 1.0 / (1.0 + math.exp(-x)) if x >= 0 else math.exp(x) / (1.0 + math.exp(x))
     slope = beta / tau * fi_c * (1.0 - fi_c)
     return slope, 1.0 - fi_c - slope * tau_c
+
+
+@njit(cache=True, inline="always")
+def camera_local(t0, t1, t2, R):
+    """The camera centre (the origin) in a cuboid's frame: -R^T t."""
+    return (
+        -(R[0, 0] * t0 + R[1, 0] * t1 + R[2, 0] * t2),
+        -(R[0, 1] * t0 + R[1, 1] * t1 + R[2, 1] * t2),
+        -(R[0, 2] * t0 + R[1, 2] * t1 + R[2, 2] * t2),
+    )
 
 
 @njit(cache=True)
