@@ -1,38 +1,157 @@
-"""Sampling minimal sets (paper Sec. 3.2.1): samplers give per-point sampling weights, minimal sets of C
-points are drawn from them.
+"""Sampling minimal sets (paper Sec. 3.2.1): per-point sampling weights from which minimal sets are drawn.
 
-Modules: :mod:`.base` (the :class:`SamplingContext` a sampler sees, the :class:`Sampler` protocol, the
-uniform, sequential and local samplers, drawing minimal sets), :mod:`.proposals` (minimal sets localised in
-a 3D ball), :mod:`.learned` (the sampling-weight network as a Sampler). :func:`make_sampler` builds a
-sampler by name. Fitting imports this package; it imports neither fitting nor the solvers.
+A sampler returns Q sampling distributions over the fitting points and a selection distribution q over
+them. A hypothesis first picks a distribution by q, then draws its C points from it with replacement.
+Uniform sampling has Q = 1; the learned sampler (Q = 4) is in :mod:`cuboidcli.sampling.learned`, minimal
+sets localised in a 3D ball in :mod:`cuboidcli.sampling.proposals`. :func:`make_sampler` builds a sampler
+by name. Fitting imports this package; it imports neither fitting nor the solvers.
 """
 
 from __future__ import annotations
 
-from cuboidcli.sampling.base import (
-    LocalSampler,
-    Sampler,
-    SamplingContext,
-    SequentialSampler,
-    UniformSampler,
-    draw_hypotheses,
-    draw_minimal_sets,
-    draw_sets_and_maps,
-    local_fraction_of,
-)
+from dataclasses import dataclass
+from typing import Protocol
 
-__all__ = [
-    "LocalSampler",
-    "Sampler",
-    "SamplingContext",
-    "SequentialSampler",
-    "UniformSampler",
-    "draw_hypotheses",
-    "draw_minimal_sets",
-    "draw_sets_and_maps",
-    "local_fraction_of",
-    "make_sampler",
-]
+import torch
+from torch import Tensor
+
+
+@dataclass
+class SamplingContext:
+    """What a sampler may look at in one step.
+
+    points (N, 3) valid fitting points, metres; grid_index (N,) flat index of each point in the fitting grid
+    of shape grid_shape (Hs, Ws); depth_grid (Hs, Ws) metres with 0 where invalid; state (N,) = f_OAI of the
+    cuboids selected so far (negative where occluded, 0 before the first).
+    """
+
+    points: Tensor
+    grid_index: Tensor
+    grid_shape: tuple[int, int]
+    depth_grid: Tensor
+    state: Tensor
+    step: int
+    focal_cells: tuple[float, float] | None = None
+    """Focal lengths in fitting-grid cells (fx / grid_step, fy / grid_step); None = estimated from the
+    points when a localised proposal needs them."""
+
+
+class Sampler(Protocol):
+    name: str
+
+    def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
+        """Returns (p (Q, N) rows summing to 1, q (Q,) summing to 1)."""
+        ...
+
+
+class UniformSampler:
+    """Every valid point equally likely: Sequential RANSAC's uniform sampling."""
+
+    name = "uniform"
+
+    def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
+        n = ctx.points.shape[0]
+        p = torch.full((1, n), 1.0 / n, dtype=torch.float64, device=ctx.points.device)
+        return p, torch.ones(1, dtype=torch.float64, device=ctx.points.device)
+
+
+class SequentialSampler:
+    """Weights 1 - max(f_OAI(y, M), 0): points already explained are sampled less (the paper's
+    Sequential RANSAC baseline with soft inlier removal)."""
+
+    name = "sequential"
+
+    def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
+        w = (1.0 - ctx.state.double().clamp_min(0.0)).clamp_min(0.0)
+        total = w.sum()
+        if total <= 1e-12:
+            w = torch.ones_like(w)
+            total = w.sum()
+        return (w / total)[None], torch.ones(1, dtype=torch.float64, device=w.device)
+
+
+class LocalSampler(SequentialSampler):
+    """Sequential-RANSAC weights for the first point; every minimal set localised in a 3D ball around it
+    (``local_fraction`` 1, whatever the configuration says; see :mod:`cuboidcli.sampling.proposals`)."""
+
+    name = "local"
+    local_fraction = 1.0
+
+
+def draw_sets_and_maps(
+    p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
+) -> tuple[Tensor, Tensor]:
+    """Minimal sets: map j(h) ~ q per hypothesis, then C points ~ p_j with replacement.
+
+    p (Q, N), q (Q,) -> (maps (H,) long, indices (H, C) long). The chosen maps are what the sampler's
+    policy gradient needs. Draws happen on the CPU generator so that results do not depend on the device.
+    """
+    p = p.detach().double().cpu()
+    q = q.detach().double().cpu()
+    if p.shape[0] == 1:
+        maps = torch.zeros(hypotheses, dtype=torch.long)
+    else:
+        maps = torch.multinomial(q, hypotheses, replacement=True, generator=generator)
+    idx = torch.empty(hypotheses, min_set, dtype=torch.long)
+    for j in range(p.shape[0]):
+        sel = (maps == j).nonzero().squeeze(1)
+        if sel.numel():
+            draws = torch.multinomial(p[j], sel.numel() * min_set, replacement=True, generator=generator)
+            idx[sel] = draws.view(-1, min_set)
+    return maps, idx
+
+
+def draw_minimal_sets(
+    p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
+) -> Tensor:
+    """Indices (H, C) of minimal sets drawn as :func:`draw_sets_and_maps`."""
+    return draw_sets_and_maps(p, q, hypotheses, min_set, generator)[1]
+
+
+def local_fraction_of(sampler: Sampler, configured: float) -> float:
+    """The share of localised minimal sets a sampler uses: its own ``local_fraction`` if it fixes one (the
+    local sampler: 1), else the configured one."""
+    return float(getattr(sampler, "local_fraction", configured))
+
+
+def draw_hypotheses(
+    sampler: Sampler,
+    ctx: SamplingContext,
+    hypotheses: int,
+    min_set: int,
+    generator: torch.Generator,
+    local_fraction: float = 0.0,
+    radii_m: tuple[float, ...] | None = None,
+    dists: tuple[Tensor, Tensor] | None = None,
+) -> tuple[Tensor, Tensor, Tensor]:
+    """One batch of minimal sets: the first ``round(local_fraction * hypotheses)`` localised (first point
+    from the sampler's maps, the others from a 3D ball around it), the rest global (all C points from the
+    maps, the paper's sets). Returns (maps (H,), indices (H, C), local (H,) bool), all on the CPU."""
+    from cuboidcli.sampling.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
+
+    frac = local_fraction_of(sampler, local_fraction)
+    n_local = min(max(round(frac * hypotheses), 0), hypotheses)
+    p, q = dists if dists is not None else sampler.distributions(ctx)
+    maps = torch.empty(hypotheses, dtype=torch.long)
+    idx = torch.empty(hypotheses, min_set, dtype=torch.long)
+    if n_local:
+        maps[:n_local], seeds = draw_sets_and_maps(p, q, n_local, 1, generator)
+        idx[:n_local] = ball_minimal_sets(
+            ctx.points,
+            ctx.grid_index,
+            ctx.grid_shape,
+            seeds[:, 0],
+            min_set,
+            generator,
+            radii_m or DEFAULT_RADII_M,
+            neighbour_weights(ctx.state),
+            ctx.focal_cells,
+        )
+    if n_local < hypotheses:
+        maps[n_local:], idx[n_local:] = draw_sets_and_maps(p, q, hypotheses - n_local, min_set, generator)
+    local = torch.zeros(hypotheses, dtype=torch.bool)
+    local[:n_local] = True
+    return maps, idx, local
 
 
 def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:

@@ -1,19 +1,24 @@
 """The learned sampler: the sampling-weight network (:mod:`cuboidcli.nets.sampler`) as a Sampler.
 
-The network sees the fitting grid of a :class:`~cuboidcli.sampling.base.SamplingContext` (depth and the
-state of the cuboids selected so far) and returns Q sampling-weight maps and selection weights q.
+The network sees the fitting grid of a :class:`~cuboidcli.sampling.SamplingContext` (depth and the state
+of the cuboids selected so far) and returns Q sampling-weight maps and selection weights q. The context is
+only read here, so it is imported for type checking alone: the package imports this module lazily (in
+:func:`~cuboidcli.sampling.make_sampler`) and this module never imports the package back.
 """
 
 from __future__ import annotations
 
 import os
+from typing import TYPE_CHECKING
 
 import torch
 from torch import Tensor
 
 from cuboidcli.nets.sampler import SamplerNet, net_from_checkpoint
-from cuboidcli.sampling.base import SamplingContext
 from cuboidcli.weights import resolve
+
+if TYPE_CHECKING:
+    from cuboidcli.sampling import SamplingContext
 
 
 def grid_inputs(ctx: SamplingContext) -> tuple[Tensor, Tensor, Tensor]:
