@@ -2,7 +2,7 @@
 
 The weights and their model cards live in the repository's top-level ``models/`` folder (where a source
 checkout and an editable install read them). A wheel has no such folder, so building one copies them into
-the package as ``cuboidcli/models/``, where :mod:`cuboidcli.bundles` looks first. Everything else about the
+the package as ``cuboidcli/models/``, where :mod:`cuboidcli.weights` looks first. Everything else about the
 package is declared in pyproject.toml.
 """
 

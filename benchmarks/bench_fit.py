@@ -65,7 +65,7 @@ def main() -> None:
 
     from cuboidcli.fitting.config import FitConfig
     from cuboidcli.fitting.pipeline import ensure_compiled, fit_depth, make_solver
-    from cuboidcli.fitting.sampling import make_sampler
+    from cuboidcli.sampling import make_sampler
 
     t = time.perf_counter()
     ensure_compiled()

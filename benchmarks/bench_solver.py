@@ -75,7 +75,7 @@ def main() -> None:
 
     from cuboidcli.fitting.config import FitConfig
     from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
-    from cuboidcli.learn.solver_net import parameter_count
+    from cuboidcli.nets.checkpoint import parameter_count
 
     if max(thread_counts) > numba.config.NUMBA_NUM_THREADS:
         ap.error(

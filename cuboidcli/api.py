@@ -204,9 +204,9 @@ class Fitter:
         device: str = "auto",
         **settings,
     ) -> None:
-        from cuboidcli.bundles import default_weights_dir, shipped_path
         from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
-        from cuboidcli.fitting.sampling import make_sampler
+        from cuboidcli.sampling import make_sampler
+        from cuboidcli.weights import default_weights_dir, shipped_path
 
         unknown = sorted(set(settings) - set(SETTINGS))
         if unknown:
@@ -359,9 +359,9 @@ def estimate_depth(
     """Metric depth (H, W) float32 in metres predicted from an RGB image (H, W, 3) uint8 by the built-in
     network (``model`` None: the shipped weights; a .pt checkpoint of it; or a metric ONNX model). The
     network is loaded once per process."""
-    from cuboidcli.bundles import shipped_path
     from cuboidcli.depth import estimate_depth as _estimate
     from cuboidcli.fitting.frame import DepthModelOptions, depth_estimator
+    from cuboidcli.weights import shipped_path
 
     rgb = np.asarray(rgb)
     if rgb.ndim != 3 or rgb.shape[2] != 3:

@@ -20,8 +20,8 @@ from cuboidcli.evaluation.runner import load_frames
 from cuboidcli.export.overlay import background_image, draw_overlay, make_panel, raycast, write_png
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth, make_solver
-from cuboidcli.fitting.sampling import make_sampler
 from cuboidcli.io.depth import read_depth
+from cuboidcli.sampling import make_sampler
 
 SAMPLE = Path(__file__).resolve().parents[1] / "cuboidcli" / "data" / "sample"
 

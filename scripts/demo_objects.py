@@ -20,9 +20,9 @@ from cuboidcli.evaluation.metrics import OBJECT_EXPLAIN_PCT
 from cuboidcli.fitting.assign import assign_points
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth, make_solver
-from cuboidcli.fitting.sampling import make_sampler
 from cuboidcli.io.depth import read_depth
 from cuboidcli.io.result import read_result
+from cuboidcli.sampling import make_sampler
 from cuboidcli.synth import render_boxes
 
 SAMPLE = Path(__file__).resolve().parents[1] / "cuboidcli" / "data" / "sample"

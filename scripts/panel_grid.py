@@ -15,7 +15,7 @@ from cuboidcli.evaluation.runner import load_frames
 from cuboidcli.export.overlay import render_images, write_png
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth, make_solver
-from cuboidcli.fitting.sampling import make_sampler
+from cuboidcli.sampling import make_sampler
 
 
 def main() -> None:

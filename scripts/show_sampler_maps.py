@@ -15,9 +15,9 @@ import numpy as np
 import torch
 
 from cuboidcli.fitting.pipeline import prepare_points
-from cuboidcli.fitting.sampling import SamplingContext, make_sampler
 from cuboidcli.io.atomic import atomic_write_bytes
 from cuboidcli.io.dataset import list_frames
+from cuboidcli.sampling import SamplingContext, make_sampler
 
 
 def main() -> None:

@@ -122,10 +122,9 @@ def finetune_setup(tmp_path_factory):
     from 4 shifted 160x120 cameras (3 train, 1 val), a tiny sampler and a tiny depth net."""
 
     from cuboidcli.camera import Camera
-    from cuboidcli.depth.net import DepthNet, DepthNetConfig
-    from cuboidcli.depth.net import checkpoint_dict as depth_checkpoint
-    from cuboidcli.learn.sampler_net import SamplerNet, SamplerNetConfig
-    from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
+    from cuboidcli.nets.checkpoint import checkpoint_dict
+    from cuboidcli.nets.depth import DepthNet, DepthNetConfig
+    from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 
     camera = Camera.preset("nyu").scaled(0.25)
     root = tmp_path_factory.mktemp("ddp_finetune")
@@ -135,8 +134,8 @@ def finetune_setup(tmp_path_factory):
     depth_net = DepthNet(
         DepthNetConfig(channels=(4, 8, 8, 8, 8), input_height=64, input_width=80, canonical_focal_px=65.0)
     )
-    torch.save(sampler_checkpoint(sampler), root / "sampler.pt")
-    torch.save(depth_checkpoint(depth_net), root / "depth.pt")
+    torch.save(checkpoint_dict(sampler), root / "sampler.pt")
+    torch.save(checkpoint_dict(depth_net), root / "depth.pt")
     return root
 
 
@@ -149,8 +148,7 @@ TINY_FINETUNE_RUN += ["--lr", "0", "--depth-lr", "1e-3", "--seed", "4", "--backe
 
 
 def test_torchrun_two_processes_finetune(tmp_path, finetune_setup):
-    from cuboidcli.learn.finetune import DEPTH_NAME
-    from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
+    from cuboidcli.learn.finetune import DEPTH_NAME, SAMPLER_NAME
 
     out = tmp_path / "run"
     args = ["train", "finetune", finetune_setup / "data", *TINY_FINETUNE_RUN]

@@ -13,7 +13,8 @@ from torch import nn
 from cuboidcli.camera import Camera
 from cuboidcli.depth import BuiltinDepthEstimator, OnnxDepthEstimator, depth_for_fit, make_depth_estimator
 from cuboidcli.depth.estimator import fit_scale_shift
-from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict, net_from_checkpoint
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.depth import DepthNet, DepthNetConfig, net_from_checkpoint
 
 pytest.importorskip("onnxruntime")
 

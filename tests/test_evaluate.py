@@ -400,7 +400,8 @@ def test_rgb_input_fits_estimated_depth_and_scores_against_true_depth(app, folde
 
     import torch
 
-    from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict
+    from cuboidcli.nets.checkpoint import checkpoint_dict
+    from cuboidcli.nets.depth import DepthNet, DepthNetConfig
 
     res = CliRunner().invoke(app, ["evaluate", str(folder), "--rgb", *FAST_OPTS])
     assert res.exit_code == 2 and "needs an RGB image" in res.output

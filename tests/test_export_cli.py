@@ -192,7 +192,8 @@ def test_export_onnx(app, tmp_path):
     import onnx
     import torch
 
-    from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict
+    from cuboidcli.nets.checkpoint import checkpoint_dict
+    from cuboidcli.nets.solver import SolverNet, SolverNetConfig
 
     torch.manual_seed(0)
     weights = tmp_path / "tiny.pt"

@@ -9,6 +9,7 @@ from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.learn.finetune import (
     DEPTH_NAME,
+    SAMPLER_NAME,
     SOLVER_NAME,
     FinetuneConfig,
     Nets,
@@ -18,11 +19,9 @@ from cuboidcli.learn.finetune import (
     predicted_grid,
     scene_loss,
 )
-from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
-from cuboidcli.learn.sampler_net import SamplerNet, SamplerNetConfig
-from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
-from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig
-from cuboidcli.learn.solver_net import checkpoint_dict as solver_checkpoint
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
+from cuboidcli.nets.solver import SolverNet, SolverNetConfig
 from cuboidcli.solvers.implicit import polished
 from cuboidcli.solvers.numerical import NumericalSolver
 from tests.conftest import write_room_dataset
@@ -41,8 +40,7 @@ def rgbd_dataset(tmp_path_factory):
 @pytest.fixture(scope="module")
 def weights(tmp_path_factory):
     """Tiny sampler (with the prior), solver and depth nets saved as the trainers would."""
-    from cuboidcli.depth.net import DepthNet, DepthNetConfig
-    from cuboidcli.depth.net import checkpoint_dict as depth_checkpoint
+    from cuboidcli.nets.depth import DepthNet, DepthNetConfig
 
     root = tmp_path_factory.mktemp("weights")
     torch.manual_seed(0)
@@ -51,9 +49,9 @@ def weights(tmp_path_factory):
     depth = DepthNet(
         DepthNetConfig(channels=(4, 8, 8, 8, 8), input_height=64, input_width=80, canonical_focal_px=65.0)
     )
-    torch.save(sampler_checkpoint(sampler), root / "sampler.pt")
-    torch.save(solver_checkpoint(solver), root / "solver.pt")
-    torch.save(depth_checkpoint(depth), root / "depth.pt")
+    torch.save(checkpoint_dict(sampler), root / "sampler.pt")
+    torch.save(checkpoint_dict(solver), root / "solver.pt")
+    torch.save(checkpoint_dict(depth), root / "depth.pt")
     return root
 
 
@@ -167,7 +165,7 @@ def test_finetune_writes_weights_and_resumes(tmp_path, rgbd_dataset, weights):
         assert set(ckpt) >= {"config", "state_dict", "meta"}
     # the fine-tuned depth network differs from its start; the files load where fit loads them
     from cuboidcli.depth.estimator import BuiltinDepthEstimator
-    from cuboidcli.learn.sampler_net import LearnedSampler
+    from cuboidcli.sampling.learned import LearnedSampler
     from cuboidcli.solvers.neural import NeuralSolver
 
     start = torch.load(weights / "depth.pt", weights_only=True)["state_dict"]

@@ -154,7 +154,8 @@ def tiny_depth_weights(tmp_path):
     """A tiny random built-in depth network, saved as a checkpoint."""
     import torch
 
-    from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict
+    from cuboidcli.nets.checkpoint import checkpoint_dict
+    from cuboidcli.nets.depth import DepthNet, DepthNetConfig
 
     torch.manual_seed(0)
     weights = tmp_path / "depth.pt"

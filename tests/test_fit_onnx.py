@@ -13,7 +13,8 @@ pytest.importorskip("onnxruntime")
 
 
 def test_fit_with_onnx_solver_matches_neural(tmp_path, room_png):
-    from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict
+    from cuboidcli.nets.checkpoint import checkpoint_dict
+    from cuboidcli.nets.solver import SolverNet, SolverNetConfig
 
     torch.manual_seed(0)
     weights = tmp_path / "solver.pt"

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 import torch
 
-from cuboidcli.fitting.fused import cuboid_values, score_gains
 from cuboidcli.fitting.scoring import ScoreParams, gains_torch, select_best
 from cuboidcli.geometry import kernels as K
+from cuboidcli.geometry.fused import cuboid_values, score_gains
 from cuboidcli.geometry.rotations import axis_angle_to_matrix
 
 TAU, BETA = 0.004, 5.0

@@ -15,7 +15,8 @@ from typer.testing import CliRunner
 
 from cuboidcli.cli.main import app
 from cuboidcli.io.checkpoints import CheckpointError, load_net, read_checkpoint
-from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict, net_from_checkpoint
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.solver import SolverNet, SolverNetConfig, net_from_checkpoint
 from tests.conftest import write_room_dataset
 
 SAMPLE = Path(__file__).resolve().parents[1] / "cuboidcli" / "data" / "sample"

@@ -7,12 +7,13 @@ import hashlib
 import pytest
 import torch
 
-from cuboidcli.learn.solver_data import SyntheticConfig, seeded_batch
-from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.solver import SolverNet, SolverNetConfig
 from cuboidcli.solvers import onnx as onnx_solver
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.neural import NeuralSolver
 from cuboidcli.solvers.onnx import OnnxSolver, export_net_onnx, export_solver_onnx, onnx_parity
+from cuboidcli.solvers.synthetic import SyntheticConfig, seeded_batch
 
 # The optional dependencies; cuboidcli.solvers.onnx imports them only when used.
 onnx = pytest.importorskip("onnx")

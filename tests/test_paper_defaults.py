@@ -13,8 +13,8 @@ from cuboidcli.evaluation.presets import resolve
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.kernels import inlier_fn, occlusion_fn
 from cuboidcli.learn.finetune import FinetuneConfig
-from cuboidcli.learn.sampler_net import SamplerNetConfig
 from cuboidcli.learn.sampler_train import SamplerTrainConfig
+from cuboidcli.nets.sampler import SamplerNetConfig
 
 
 def test_estimator_defaults_are_the_papers():

@@ -19,10 +19,10 @@ from cuboidcli.fitting.pipeline import (
     miss_probability,
     prepare_points,
 )
-from cuboidcli.fitting.sampling import SequentialSampler
 from cuboidcli.fitting.scoring import ScoreParams, gains_torch, values_torch
 from cuboidcli.fitting.winner import grow_cuboid
 from cuboidcli.io.depth import read_depth
+from cuboidcli.sampling import SequentialSampler
 from cuboidcli.synth import render_boxes
 
 SAMPLE = Path(__file__).resolve().parents[1] / "cuboidcli" / "data" / "sample"

@@ -1,4 +1,4 @@
-"""The sampling-weight network and its Sampler (cuboidcli.learn.sampler_net), with tiny random nets."""
+"""The sampling-weight network (cuboidcli.nets.sampler) and its Sampler (cuboidcli.sampling.learned)."""
 
 import pytest
 import torch
@@ -6,18 +6,15 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth, prepare_points
-from cuboidcli.fitting.sampling import SamplingContext, make_sampler
-from cuboidcli.learn.sampler_net import (
-    WEIGHTS_NAME,
-    LearnedSampler,
-    SamplerNet,
-    SamplerNetConfig,
-    checkpoint_dict,
-    net_from_checkpoint,
-)
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig, net_from_checkpoint
+from cuboidcli.sampling import SamplingContext, make_sampler
+from cuboidcli.sampling.learned import LearnedSampler
+from cuboidcli.weights import FILES
 from tests.conftest import simple_room
 
 TINY = SamplerNetConfig(width=16, blocks=1, upsample=2)
+SAMPLER_FILE = FILES["sampler"]
 
 
 @pytest.fixture(scope="module")
@@ -94,15 +91,15 @@ def test_sampler_distributions_cover_the_fitting_points(small_scene):
 def test_checkpoint_round_trip_and_load(tmp_path, small_scene):
     torch.manual_seed(0)
     net = SamplerNet(TINY)
-    torch.save(checkpoint_dict(net, {"note": "test"}), tmp_path / WEIGHTS_NAME)
+    torch.save(checkpoint_dict(net, {"note": "test"}), tmp_path / SAMPLER_FILE)
     loaded = LearnedSampler.load(tmp_path)
     assert loaded.name == "learned" and loaded.net.config == TINY
     ctx = _context(*small_scene)
     torch.testing.assert_close(loaded.distributions(ctx)[0], LearnedSampler(net).distributions(ctx)[0])
     # a .pt path works as well, and make_sampler("learned") goes through the same loader
-    assert LearnedSampler.load(tmp_path / WEIGHTS_NAME).net.config == TINY
+    assert LearnedSampler.load(tmp_path / SAMPLER_FILE).net.config == TINY
     assert make_sampler("learned", tmp_path).name == "learned"
-    ckpt = torch.load(tmp_path / WEIGHTS_NAME, weights_only=True)
+    ckpt = torch.load(tmp_path / SAMPLER_FILE, weights_only=True)
     assert set(ckpt) == {"config", "state_dict", "meta"} and ckpt["meta"] == {"note": "test"}
     assert not net_from_checkpoint(ckpt).training
 
@@ -119,7 +116,7 @@ def test_missing_weights_raise_a_clear_error(tmp_path):
 def test_learned_sampler_plugs_into_fit_depth(tmp_path, small_scene):
     depth, camera = small_scene
     torch.manual_seed(0)
-    torch.save(checkpoint_dict(SamplerNet(TINY)), tmp_path / WEIGHTS_NAME)
+    torch.save(checkpoint_dict(SamplerNet(TINY)), tmp_path / SAMPLER_FILE)
     cfg = FitConfig(sampler="learned", hypotheses=128, grid_step=4, max_cuboids=3, refine=False, seed=1)
     cuboids, info = fit_depth(depth, camera, cfg, weights_dir=tmp_path)
     assert 1 <= len(cuboids) <= 3

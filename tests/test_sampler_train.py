@@ -9,7 +9,6 @@ import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.fitting.pipeline import prepare_points
-from cuboidcli.fitting.sampling import SamplingContext
 from cuboidcli.geometry.kernels import oai_per_cuboid
 from cuboidcli.learn.sampler_loss import (
     LossParams,
@@ -23,18 +22,16 @@ from cuboidcli.learn.sampler_loss import (
     occlusion_threshold,
     set_log_prob,
 )
-from cuboidcli.learn.sampler_net import (
-    WEIGHTS_NAME,
-    LearnedSampler,
-    SamplerNet,
-    SamplerNetConfig,
-    grid_inputs,
-)
 from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler, train_scene
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
+from cuboidcli.sampling import SamplingContext
+from cuboidcli.sampling.learned import LearnedSampler, grid_inputs
 from cuboidcli.solvers.numerical import NumericalSolver
+from cuboidcli.weights import FILES
 from tests.conftest import simple_room, write_room_dataset
 
 TINY = SamplerNetConfig(width=16, blocks=1, upsample=2)
+SAMPLER_FILE = FILES["sampler"]
 #: Only the policy-gradient term: every regulariser off.
 PG_ONLY = LossParams(hypotheses=32, kappa_corr=0.0, kappa_entropy=0.0, kappa_im=0.0)
 
@@ -249,7 +246,7 @@ def test_training_writes_usable_weights_and_logs(tmp_path, tiny_dataset):
     assert "auc20cm_pct" in vals[-1] and vals[-1]["key"] == "auc20cm_pct"
     cfg = json.loads((out / "config.json").read_text())
     assert cfg["train_frames"] == 3 and cfg["val_frames"] == 1 and cfg["split"] == "splits.json"
-    ckpt = torch.load(out / WEIGHTS_NAME, weights_only=True)
+    ckpt = torch.load(out / SAMPLER_FILE, weights_only=True)
     assert set(ckpt) == {"config", "state_dict", "meta"} and ckpt["meta"]["epoch"] == 1
 
 
@@ -272,7 +269,7 @@ def test_cli_trains_and_reports_errors(tmp_path, tiny_dataset):
     args += ["--grid-step", "4", "--width", "16", "--val-hypotheses", "16", "--out", str(out)]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
-    assert (out / WEIGHTS_NAME).is_file() and (out / "last.pt").is_file()
+    assert (out / SAMPLER_FILE).is_file() and (out / "last.pt").is_file()
     bad = runner.invoke(app, ["sampler", str(tmp_path / "missing")])
     assert bad.exit_code == 2 and "dataset folder not found" in bad.output
     bad = runner.invoke(app, ["sampler", str(tiny_dataset), "--samples-k", "1", "--out", str(out)])

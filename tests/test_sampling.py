@@ -1,7 +1,6 @@
 import torch
 
-from cuboidcli.fitting.proposals import ball_minimal_sets, focal_in_cells
-from cuboidcli.fitting.sampling import (
+from cuboidcli.sampling import (
     LocalSampler,
     SamplingContext,
     SequentialSampler,
@@ -9,6 +8,7 @@ from cuboidcli.fitting.sampling import (
     draw_hypotheses,
     draw_minimal_sets,
 )
+from cuboidcli.sampling.proposals import ball_minimal_sets, focal_in_cells
 
 
 def ctx_for(hs=20, ws=30, state=None, invalid=()):

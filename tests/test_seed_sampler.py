@@ -7,9 +7,10 @@ import torch
 
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import prepare_points
-from cuboidcli.fitting.sampling import SamplingContext
-from cuboidcli.learn.sampler_net import LearnedSampler, SamplerNet, SamplerNetConfig
 from cuboidcli.learn.seed_train import SeedTrainConfig, record_loss, scene_records
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
+from cuboidcli.sampling import SamplingContext
+from cuboidcli.sampling.learned import LearnedSampler
 
 WEIGHTS = Path(__file__).resolve().parents[1] / "models" / "sampler_v3.pt"
 

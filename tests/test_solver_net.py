@@ -8,8 +8,6 @@ import pytest
 import torch
 
 from cuboidcli.geometry.kernels import SIDE_AXIS, SIDE_SIGN
-from cuboidcli.learn.solver_data import SyntheticConfig, sample_batch, seeded_batch, side_weights
-from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict, parameter_count
 from cuboidcli.learn.solver_train import (
     SolverTrainConfig,
     lr_at,
@@ -17,8 +15,11 @@ from cuboidcli.learn.solver_train import (
     solver_loss,
     train_solver,
 )
+from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
+from cuboidcli.nets.solver import SolverNet, SolverNetConfig
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.neural import NeuralSolver, load_solver_net
+from cuboidcli.solvers.synthetic import SyntheticConfig, sample_batch, seeded_batch, side_weights
 
 TINY = SolverNetConfig(width=16, layers=1, heads=2, ff=32)
 

@@ -55,8 +55,8 @@ def _records(out, event):
 
 def test_trains_resumes_and_extends(app, dataset, tmp_path):
     from cuboidcli.depth.estimator import BuiltinDepthEstimator
-    from cuboidcli.depth.net import net_from_checkpoint
     from cuboidcli.io.dataset import list_frames
+    from cuboidcli.nets.depth import net_from_checkpoint
 
     out = tmp_path / "run"
     result = _run(app, dataset, "--epochs", 1, *TINY_RUN, "--out", out)

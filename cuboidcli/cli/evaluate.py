@@ -12,7 +12,6 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from cuboidcli.bundles import shipped_path
 from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
 from cuboidcli.cli.scale_options import (
     ray_address_option,
@@ -21,6 +20,7 @@ from cuboidcli.cli.scale_options import (
     skip_existing_option,
     workers_option,
 )
+from cuboidcli.weights import shipped_path
 
 #: Table columns in the paper's order (Table 1): (aggregate key, header, decimals).
 COLUMNS = (

@@ -322,7 +322,7 @@ def fit(
     if (ray_at is not None or workers > 1) and not folder_input:
         fail("--workers and --ray fit the frames of a folder: give a folder of depth maps or images")
     with user_errors():
-        from cuboidcli.bundles import check_weights_option, default_weights_dir, shipped_path
+        from cuboidcli.weights import check_weights_option, default_weights_dir, shipped_path
 
         check_weights_option(weights, config.solver, config.sampler)
         if weights is None:  # the shipped bundle that matches the input and the solver

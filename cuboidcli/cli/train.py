@@ -80,8 +80,8 @@ def solver(
     count steps. Process 0 alone validates, prints and writes OUT, which must be shared for --resume.
     """
     from cuboidcli.learn.distributed import launched_rank
-    from cuboidcli.learn.solver_net import SolverNetConfig
     from cuboidcli.learn.solver_train import SolverTrainConfig, train_solver
+    from cuboidcli.nets.solver import SolverNetConfig
 
     for name, value in (
         ("--iters", iters),

@@ -120,8 +120,8 @@ def train_sampler_cmd(
     Process 0 alone prints and writes OUT, which must be shared for --resume; resuming with the same
     number of processes continues the run exactly.
     """
-    from cuboidcli.learn.sampler_net import SamplerNetConfig
     from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler
+    from cuboidcli.nets.sampler import SamplerNetConfig
 
     check_training_paths(data, resume, out)
     if blocks < 0:

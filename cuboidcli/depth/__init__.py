@@ -1,4 +1,5 @@
-"""Depth from RGB: depth estimators f_v behind one interface, the built-in network, its training.
+"""Depth from RGB: depth estimators f_v behind one interface, the built-in network's training
+(:mod:`.train`) and depth errors (:mod:`.evaluate`). The network itself is :mod:`cuboidcli.nets.depth`.
 
 Public entry points: :func:`depth_for_fit` (what ``cuboids fit image.png`` without ``--depth`` calls),
 :func:`estimate_depth` (the same with an estimator built once), :func:`make_depth_estimator`,

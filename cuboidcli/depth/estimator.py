@@ -5,7 +5,7 @@ uint8 RGB image and ``camera`` its intrinsics (``camera.width x camera.height ==
 metres, float32 ``(H, W)`` at the image's full resolution; 0 marks pixels without a usable estimate. The
 fitting pipeline subsamples this map to its fitting grid (every 8th pixel) itself.
 
-- :class:`BuiltinDepthEstimator`: the project's own network (:mod:`cuboidcli.depth.net`), weights in
+- :class:`BuiltinDepthEstimator`: the project's own network (:mod:`cuboidcli.nets.depth`), weights in
   ``models/depth_v3.pt``.
 - :class:`OnnxDepthEstimator`: a user's monocular network exported to ONNX. Expected tensors:
 
@@ -33,7 +33,8 @@ import numpy as np
 import torch
 
 from cuboidcli.camera import Camera
-from cuboidcli.depth.net import IMAGENET_MEAN, IMAGENET_STD, DepthNet, net_from_checkpoint
+from cuboidcli.nets.depth import IMAGENET_MEAN, IMAGENET_STD, DepthNet, net_from_checkpoint
+from cuboidcli.weights import resolve
 
 KINDS = ("metric", "relative", "relative-inverse")
 
@@ -46,15 +47,6 @@ class DepthEstimator(Protocol):
     def describe(self) -> str:
         """One line for the user: which model produced the depth and how it was scaled."""
         ...
-
-
-def default_weights_path() -> Path:
-    """The shipped weights (``models/depth_v3.pt``, see :func:`cuboidcli.bundles.default_depth_weights`),
-    or ``$CUBOIDS_DEPTH_WEIGHTS`` if set."""
-    from cuboidcli.bundles import default_depth_weights
-
-    env = os.environ.get("CUBOIDS_DEPTH_WEIGHTS")
-    return Path(env) if env else default_depth_weights()
 
 
 def check_rgb(rgb: np.ndarray, camera: Camera) -> None:
@@ -112,7 +104,7 @@ class BuiltinDepthEstimator:
         self.device = torch.device(device)
         self.path = None
         if net is None:
-            self.path = Path(weights) if weights is not None else default_weights_path()
+            self.path = resolve("depth", weights)  # None: models/depth_v3.pt or $CUBOIDS_DEPTH_WEIGHTS
             if not self.path.is_file():
                 raise FileNotFoundError(
                     f"depth weights {self.path} not found; pass a .pt file written by the depth trainer "

@@ -58,7 +58,8 @@ def evaluate_dataset(estimator, root: str | Path, split: str | None = None, raw:
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m cuboidcli.depth.evaluate DATA [--model PATH] [--split NAME] [--out FILE.json]``."""
-    from cuboidcli.depth.estimator import default_weights_path, make_depth_estimator
+    from cuboidcli.depth.estimator import make_depth_estimator
+    from cuboidcli.weights import resolve
 
     p = argparse.ArgumentParser(description="Depth errors of a depth estimator on an RGB-D dataset folder.")
     p.add_argument("data")
@@ -67,7 +68,7 @@ def main(argv: list[str] | None = None) -> None:
     p.add_argument("--filled", action="store_true", help="use in-painted ground truth where both exist")
     p.add_argument("--out", default=None, help="write the report as JSON")
     a = p.parse_args(argv)
-    model = Path(a.model) if a.model else default_weights_path()
+    model = resolve("depth", a.model or None)
     report = evaluate_dataset(make_depth_estimator(model), a.data, a.split, raw=not a.filled)
     report["model"] = {"path": str(model), "sha256": hashlib.sha256(model.read_bytes()).hexdigest()}
     report["data"] = str(a.data)

@@ -36,9 +36,10 @@ import torch.nn.functional as F  # noqa: N812 - the usual alias
 
 from cuboidcli.depth.estimator import BuiltinDepthEstimator, resize
 from cuboidcli.depth.evaluate import evaluate_frames
-from cuboidcli.depth.net import DepthNet, DepthNetConfig, checkpoint_dict, parameter_count
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.dataset import Frame, list_frames
+from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
+from cuboidcli.nets.depth import DepthNet, DepthNetConfig
 
 
 @dataclass(frozen=True)

@@ -30,18 +30,10 @@ def weights_hashes(config: FitConfig, weights: Path | None) -> dict[str, dict]:
 
     ``weights`` is what ``--weights`` gave (a folder or a file), None for the shipped defaults.
     """
-    from cuboidcli.bundles import weights_for
+    from cuboidcli.weights import files_loaded
 
-    files: dict[str, Path] = {}
-    if config.solver == "neural":
-        from cuboidcli.solvers.neural import resolve_weights
-
-        files["solver"] = resolve_weights(weights_for("solver", weights))
-    if config.sampler == "learned":
-        from cuboidcli.learn.sampler_net import weights_path
-
-        path = weights_path(weights_for("sampler", weights))
-        files[f"sampler:{path.name}"] = path
+    loaded = files_loaded(config.solver, config.sampler, weights)
+    files = {kind if kind == "solver" else f"{kind}:{p.name}": p for kind, p in loaded.items()}
     return {role: {"path": str(p), "sha256": _sha256(p)} for role, p in files.items() if p.is_file()}
 
 

@@ -184,7 +184,7 @@ def check_estimator(config: FitConfig, weights_dir: Path | None = None) -> None:
     """Build the configured solver and sampler once, so that a bad setting or missing weights fails before
     any frame is evaluated (raises InputError with a one-line message)."""
     from cuboidcli.fitting.pipeline import make_solver
-    from cuboidcli.fitting.sampling import make_sampler
+    from cuboidcli.sampling import make_sampler
 
     try:
         make_solver(config, weights_dir, None, config.device)
@@ -440,7 +440,7 @@ def evaluate(
     of a run could be evaluated."""
     if not frames:
         raise InputError("no frames to evaluate (check --split, --frames and --limit)")
-    from cuboidcli.bundles import check_weights_option, default_weights_dir
+    from cuboidcli.weights import check_weights_option, default_weights_dir
 
     if settings.fits_dir is None:
         check_weights_option(settings.weights_dir, config.solver, config.sampler)

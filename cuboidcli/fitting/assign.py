@@ -23,7 +23,7 @@ def assign_points(
     -2 where f_OAI(y, M) < 0 (the point is hidden behind a cuboid side it does not lie on), otherwise the
     index of the cuboid with the highest inlier value if that value is >= 0.5 (d^2 <= tau), else -1.
     """
-    from cuboidcli.fitting.fused import cuboid_values
+    from cuboidcli.geometry.fused import cuboid_values
 
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     labels = np.full(points.shape[0], NONE, dtype=np.int32)

@@ -38,7 +38,7 @@ class FitConfig:
     drawn less) | learned (the sampling-weight network, Sec. 3.2.1)."""
     local_fraction: float = 0.75
     """Share of each batch's hypotheses whose minimal set is localised: the first point from the sampling
-    weights, the other C - 1 from a 3D ball around it (fitting/proposals.py). The rest are global sets
+    weights, the other C - 1 from a 3D ball around it (sampling/proposals.py). The rest are global sets
     (all C points from the sampling weights, the paper's). 0 = the paper's sampling."""
     local_radii_m: tuple[float, ...] = (0.15, 0.3, 0.6, 1.2)
     """Radii (m) of the balls of localised sets, one drawn per hypothesis."""

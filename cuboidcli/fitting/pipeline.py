@@ -19,17 +19,17 @@ from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import OCCLUDED
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.sampling import (
+from cuboidcli.fitting.scoring import ScoreParams, select_best
+from cuboidcli.fitting.winner import Alignment, align_winner, refine_winner, values_one
+from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
+from cuboidcli.geometry.kernels import combine
+from cuboidcli.sampling import (
     Sampler,
     SamplingContext,
     draw_hypotheses,
     local_fraction_of,
     make_sampler,
 )
-from cuboidcli.fitting.scoring import ScoreParams, select_best
-from cuboidcli.fitting.winner import Alignment, align_winner, refine_winner, values_one
-from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
-from cuboidcli.geometry.kernels import combine
 from cuboidcli.solvers.base import CuboidSolver, SizeBounds
 
 INVALID = -3
@@ -119,8 +119,8 @@ def make_solver(
 
         return NumericalSolver(bounds=bounds, lr=config.solver_lr, iters=config.solver_iters)
     if config.solver == "neural":
-        from cuboidcli.bundles import weights_for
         from cuboidcli.solvers.neural import NeuralSolver, resolve_weights
+        from cuboidcli.weights import weights_for
 
         weights = resolve_weights(weights_for("solver", weights_dir))
         return NeuralSolver(weights=weights, device=device, bounds=bounds)
@@ -141,7 +141,7 @@ def ensure_compiled() -> None:
     global _COMPILED
     if _COMPILED:
         return
-    from cuboidcli.fitting.fused import cuboid_values, score_gains
+    from cuboidcli.geometry.fused import cuboid_values, score_gains
     from cuboidcli.solvers.adam_fused import adam_solve
 
     p = np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]])
@@ -151,7 +151,7 @@ def ensure_compiled() -> None:
     init = np.zeros((1, 9))
     init[0, 6:] = 0.1
     adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy())
-    from cuboidcli.fitting.proposals import ball_minimal_sets
+    from cuboidcli.sampling.proposals import ball_minimal_sets
 
     ball_minimal_sets(
         torch.tensor([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]]),

@@ -1,6 +1,6 @@
 """Scoring hypotheses by their inlier-count gain: exact, with pruning, or with the approximate fast path.
 
-The CPU path uses the fused numba loop (:mod:`cuboidcli.fitting.fused`); other devices use the torch
+The CPU path uses the fused numba loop (:mod:`cuboidcli.geometry.fused`); other devices use the torch
 reference kernels in chunks of hypotheses.
 """
 
@@ -53,7 +53,7 @@ def gains_cpu(
     sp: ScoreParams,
     prune_below: float = -np.inf,
 ) -> np.ndarray:
-    from cuboidcli.fitting.fused import score_gains
+    from cuboidcli.geometry.fused import score_gains
 
     return score_gains(
         points,

@@ -213,7 +213,7 @@ def _refine_once(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
 def values_one(pts, c, a, R, sp: ScoreParams) -> torch.Tensor:
     """f_OAI of one cuboid at every point (N,), float64."""
     if pts.device.type == "cpu":
-        from cuboidcli.fitting.fused import cuboid_values
+        from cuboidcli.geometry.fused import cuboid_values
 
         v = cuboid_values(
             pts.double().numpy(),

@@ -1,1 +1,3 @@
-"""Differentiable geometry kernels (torch): rotations, point-to-cuboid distances, occlusion, inliers."""
+"""Geometry kernels everything else builds on: rotations, point-to-cuboid distances, occlusion, inliers
+(torch, differentiable: :mod:`.kernels`), the fused numba loops of the same on the CPU (:mod:`.fused`:
+hypothesis scoring, and the box helpers the fused solver shares), and gravity (:mod:`.gravity`)."""

@@ -6,7 +6,7 @@ per-pair results ``(H, N)``; per-side results ``(H, N, 6)``. The camera centre i
 Sides are ordered (+x, -x, +y, -y, +z, -z) in the cuboid's local frame.
 
 These kernels are the reference implementation (used for training, metrics and on CUDA). Inference on
-the CPU scores hypotheses with the fused loop in :mod:`cuboidcli.fitting.fused`, tested against these.
+the CPU scores hypotheses with the fused loop in :mod:`cuboidcli.geometry.fused`, tested against these.
 """
 
 from __future__ import annotations

@@ -68,9 +68,8 @@ from torch import Tensor
 
 from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.fused import cuboid_values
 from cuboidcli.fitting.pipeline import fit_depth, prepare_points
-from cuboidcli.fitting.sampling import draw_sets_and_maps
+from cuboidcli.geometry.fused import cuboid_values
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import load_net, read_checkpoint
@@ -84,16 +83,17 @@ from cuboidcli.learn.sampler_loss import (
     inlier_masking_loss,
     set_log_prob,
 )
-from cuboidcli.learn.sampler_net import WEIGHTS_NAME as SAMPLER_NAME
-from cuboidcli.learn.sampler_net import LearnedSampler, SamplerNet
-from cuboidcli.learn.sampler_net import checkpoint_dict as sampler_checkpoint
-from cuboidcli.learn.sampler_net import net_from_checkpoint as sampler_from_checkpoint
-from cuboidcli.learn.sampler_net import weights_path as sampler_weights_path
 from cuboidcli.learn.sampler_train import draw_seed
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.sampler import SamplerNet
+from cuboidcli.nets.sampler import net_from_checkpoint as sampler_from_checkpoint
+from cuboidcli.sampling import draw_sets_and_maps
+from cuboidcli.sampling.learned import LearnedSampler
+from cuboidcli.weights import FILES, resolve
 
 STATE_KIND = "finetune-state"
-SOLVER_NAME = "solver_v2.pt"
-DEPTH_NAME = "depth_v2.pt"
+#: The files it writes, in the layout ``--weights DIR`` reads.
+SAMPLER_NAME, SOLVER_NAME, DEPTH_NAME = FILES["sampler"], FILES["solver"], FILES["depth"]
 SOLVERS = ("neural", "numerical")
 
 
@@ -263,17 +263,16 @@ def load_nets(cfg: FinetuneConfig, sampler_weights=None, solver_weights=None, de
     """The pre-trained starting points (None = the shipped weights)."""
     from cuboidcli.solvers.neural import load_solver_net
 
-    path = sampler_weights_path(sampler_weights)
+    path = resolve("sampler", sampler_weights)
     if not path.is_file():
         raise FileNotFoundError(f"sampler weights {path} not found; train them with 'cuboids train sampler'")
     sampler = load_net(path, "sampler", sampler_from_checkpoint)
     solver = load_solver_net(solver_weights, "cpu") if cfg.solver == "neural" else None
     depth = None
     if cfg.rgb:
-        from cuboidcli.depth.estimator import default_weights_path
-        from cuboidcli.depth.net import net_from_checkpoint
+        from cuboidcli.nets.depth import net_from_checkpoint
 
-        dpath = Path(depth_weights) if depth_weights is not None else default_weights_path()
+        dpath = resolve("depth", depth_weights)
         if not dpath.is_file():
             raise FileNotFoundError(f"depth weights {dpath} not found; train them with 'cuboids train depth'")
         depth = load_net(dpath, "depth", net_from_checkpoint)
@@ -405,14 +404,10 @@ def validate(
 
 
 def _weights_files(nets: Nets, out_dir: Path, meta: dict) -> None:
-    atomic_torch_save(sampler_checkpoint(nets.sampler, meta), out_dir / SAMPLER_NAME)
+    atomic_torch_save(checkpoint_dict(nets.sampler, meta), out_dir / SAMPLER_NAME)
     if nets.solver is not None:
-        from cuboidcli.learn.solver_net import checkpoint_dict
-
         atomic_torch_save(checkpoint_dict(nets.solver, meta), out_dir / SOLVER_NAME)
     if nets.depth is not None:
-        from cuboidcli.depth.net import checkpoint_dict
-
         atomic_torch_save(checkpoint_dict(nets.depth, meta), out_dir / DEPTH_NAME)
 
 

@@ -35,8 +35,8 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
-from cuboidcli.fitting.sampling import draw_sets_and_maps
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
+from cuboidcli.sampling import draw_sets_and_maps
 from cuboidcli.solvers.base import CuboidSolver
 
 
@@ -92,7 +92,7 @@ def draw_sets(
     """Draw |H| minimal sets: map j(h) ~ q, then C point indices ~ p_j with replacement.
 
     p (Q, N), q (Q,) -> maps (H,) long, idx (H, C) long: the estimator's own drawing
-    (:func:`cuboidcli.fitting.sampling.draw_sets_and_maps`), so training samples as inference does.
+    (:func:`cuboidcli.sampling.draw_sets_and_maps`), so training samples as inference does.
     """
     return draw_sets_and_maps(p, q, hypotheses, min_set, generator)
 

@@ -16,7 +16,7 @@ cuboids is used instead.
 Files in ``out_dir``: ``config.json`` (resolved configs), ``log.jsonl`` (one JSON record per step,
 validation and epoch), ``last.pt`` and ``epoch_XXX.pt`` (training state: weights, optimizer, RNG states,
 epoch; the last ``keep_snapshots`` are kept) and ``sampler_v2.pt`` (weights only, the best validation so
-far, in the format :meth:`cuboidcli.learn.sampler_net.LearnedSampler.load` reads, so ``--weights out_dir``
+far, in the format :meth:`cuboidcli.sampling.learned.LearnedSampler.load` reads, so ``--weights out_dir``
 uses it). ``resume`` continues a run exactly: the same frames, draws and losses as without interruption.
 This module prints nothing: progress goes to the ``on_event`` callback.
 
@@ -54,7 +54,6 @@ import torch
 
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import PreparedPoints, fit_depth
-from cuboidcli.fitting.sampling import SamplingContext
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import read_checkpoint
@@ -62,17 +61,13 @@ from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
 from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, occlusion_threshold
-from cuboidcli.learn.sampler_net import (
-    WEIGHTS_NAME,
-    LearnedSampler,
-    SamplerNet,
-    SamplerNetConfig,
-    checkpoint_dict,
-    grid_inputs,
-    parameter_count,
-)
+from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
+from cuboidcli.sampling import SamplingContext
+from cuboidcli.sampling.learned import LearnedSampler, grid_inputs
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver
+from cuboidcli.weights import FILES
 
 STATE_KIND = "sampler-train-state"
 #: Rank r's draw seed is offset by r * RANK_SEED_STRIDE and a rank new to a resumed run's by the epoch times
@@ -427,7 +422,7 @@ class _Run:
                 "fit_config": self.fit.to_dict(),
                 "data": str(self.data),
             }
-            atomic_torch_save(checkpoint_dict(self.net, meta), self.out_dir / WEIGHTS_NAME)
+            atomic_torch_save(checkpoint_dict(self.net, meta), self.out_dir / FILES["sampler"])
 
 
 def train_sampler(
@@ -533,7 +528,7 @@ def _train(ctx, cfg, data, out_dir, net_cfg, fit, state, resume, emit, stop_afte
         "event": "end",
         "epochs_done": run.epoch,
         "best": run.best,
-        "weights": str(out_dir / WEIGHTS_NAME),
+        "weights": str(out_dir / FILES["sampler"]),
         "last": str(out_dir / "last.pt"),
         "seconds": time.perf_counter() - t_start,
     }

@@ -1,6 +1,6 @@
 """Training the sampling-weight network to place the FIRST point of localised minimal sets.
 
-With localised minimal sets (:mod:`cuboidcli.fitting.proposals`) a hypothesis is decided by where its
+With localised minimal sets (:mod:`cuboidcli.sampling.proposals`) a hypothesis is decided by where its
 first point lands: six points from a ball around a seed on the sofa give a sofa box. So the question a
 learned sampler can answer is "which seeds lead to the structure the estimator should take next?". No box
 labels are needed to answer it from data: at every step of a sequential fit of a training scene, draw
@@ -30,13 +30,15 @@ import torch
 
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import PreparedPoints
-from cuboidcli.fitting.sampling import SamplingContext, SequentialSampler, draw_hypotheses
 from cuboidcli.fitting.scoring import ScoreParams, gains_cpu
 from cuboidcli.fitting.winner import values_one
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.atomic import atomic_torch_save
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, prepare_scenes
-from cuboidcli.learn.sampler_net import SamplerNet, SamplerNetConfig, checkpoint_dict, grid_inputs
+from cuboidcli.nets.checkpoint import checkpoint_dict
+from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
+from cuboidcli.sampling import SamplingContext, SequentialSampler, draw_hypotheses
+from cuboidcli.sampling.learned import grid_inputs
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver
 

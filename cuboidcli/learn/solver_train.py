@@ -35,8 +35,10 @@ from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
-from cuboidcli.learn.solver_data import SyntheticBatch, SyntheticConfig, seeded_batch
-from cuboidcli.learn.solver_net import SolverNet, SolverNetConfig, checkpoint_dict, parameter_count
+from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
+from cuboidcli.nets.solver import SolverNet, SolverNetConfig
+from cuboidcli.solvers.synthetic import SyntheticBatch, SyntheticConfig, seeded_batch
+from cuboidcli.weights import default_path
 
 #: Seeds of the held-out validation sets live far from the training seeds (seed * 2^32 + iteration).
 VAL_SEED = 2**62 + 2024
@@ -384,10 +386,10 @@ def compare_on_validation(weights: str | Path | None = None, n_sets: int = 4096,
     """The model card's numbers: residuals of the neural solver (``weights``, None = shipped), the numerical
     solver (PCA + 50 Adam steps) and its PCA initial box on the held-out sets of the weights' training data,
     and the median time of each on ``n_sets`` sets with the current torch thread count."""
-    from cuboidcli.solvers.neural import NeuralSolver, default_weights_path
+    from cuboidcli.solvers.neural import NeuralSolver
     from cuboidcli.solvers.numerical import NumericalSolver, pca_init
 
-    path = Path(weights) if weights is not None else default_weights_path()
+    path = Path(weights) if weights is not None else default_path("solver")
     neural = NeuralSolver(path)
     meta = read_checkpoint(path, "solver").get("meta", {})
     data = SyntheticConfig(**meta["data_config"]) if "data_config" in meta else SyntheticConfig()

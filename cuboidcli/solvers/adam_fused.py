@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from cuboidcli.fitting.fused import camera_local, slab_occlusion
+from cuboidcli.geometry.fused import camera_local, slab_occlusion
 
 
 @njit(cache=True, inline="always")

@@ -1,7 +1,8 @@
 """Neural cuboid solver (paper Sec. 3.2.3): one forward pass of the regression network per batch of sets.
 
 Weights are plain dicts ``{"config", "state_dict", "meta"}`` loaded with ``torch.load(weights_only=True)``;
-see :mod:`cuboidcli.learn.solver_net`. The shipped weights live in ``models/`` beside their model card.
+see :mod:`cuboidcli.nets.solver`. Which file is loaded is decided by :mod:`cuboidcli.weights` (the shipped
+weights live in ``models/`` beside their model card).
 """
 
 from __future__ import annotations
@@ -14,39 +15,26 @@ from pathlib import Path
 import torch
 from torch import Tensor
 
-from cuboidcli.bundles import MODELS_DIR
 from cuboidcli.io.checkpoints import load_net
-from cuboidcli.learn.solver_net import SolverNet, net_from_checkpoint
+from cuboidcli.nets.solver import SolverNet, net_from_checkpoint
 from cuboidcli.solvers.base import SizeBounds
-
-#: Versioned default weights, in the shipped models folder (:data:`cuboidcli.bundles.MODELS_DIR`).
-DEFAULT_WEIGHTS = MODELS_DIR / "solver_v2.pt"
+from cuboidcli.weights import default_path, resolve
 
 #: Sets per forward chunk on the CPU: 512 x 6 points keep the activations (~1 MB per layer) in the cache,
 #: which made the 4096-set forward pass about 1.5x faster than one big batch.
 CHUNK_SETS = 512
 
 
-def default_weights_path() -> Path:
-    """The shipped pre-trained weights (``models/solver_v2.pt``), or ``$CUBOIDS_SOLVER_WEIGHTS`` if set."""
-    return Path(os.environ.get("CUBOIDS_SOLVER_WEIGHTS", DEFAULT_WEIGHTS))
-
-
 def resolve_weights(weights: str | os.PathLike | None) -> Path:
-    """The solver weights file for a ``--weights`` value: None = the shipped default; a folder = its
-    ``solver_v2.pt`` (``solver_v1.pt`` in folders of the first release); a file as given."""
-    if weights is None:
-        return default_weights_path()
-    path = Path(weights)
-    if path.is_dir():
-        named = [path / n for n in ("solver_v2.pt", "solver_v1.pt")]
-        return next((p for p in named if p.is_file()), named[0])
-    return path
+    """The solver weights file for a ``--weights`` value (:func:`cuboidcli.weights.resolve`): None = the
+    default; a folder = its ``solver_v2.pt`` (``solver_v1.pt`` in folders of the first release); a file as
+    given. Here for :func:`cuboidcli.fitting.pipeline.make_solver`."""
+    return resolve("solver", weights)
 
 
 def load_solver_net(path: str | os.PathLike | None = None, device: str | torch.device = "cpu") -> SolverNet:
     """Load a solver checkpoint (None = the default weights) into an eval-mode float32 net on ``device``."""
-    path = Path(path) if path is not None else default_weights_path()
+    path = Path(path) if path is not None else default_path("solver")
     if not path.is_file():
         raise FileNotFoundError(
             f"solver weights {path} not found; pass a .pt file written by 'cuboids train solver'"

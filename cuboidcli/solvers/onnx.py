@@ -21,9 +21,10 @@ import torch
 from torch import Tensor
 
 from cuboidcli.io.atomic import atomic_write
-from cuboidcli.learn.solver_net import SolverNet
+from cuboidcli.nets.solver import SolverNet
 from cuboidcli.solvers.base import SizeBounds
-from cuboidcli.solvers.neural import CHUNK_SETS, check_bounds, default_weights_path, load_solver_net
+from cuboidcli.solvers.neural import CHUNK_SETS, check_bounds, load_solver_net
+from cuboidcli.weights import default_path
 
 INPUT = "minimal_sets"
 OUTPUTS = ("centers", "half_sizes", "rotations")
@@ -33,7 +34,7 @@ PARITY_TOL = 1e-4
 
 def _parity_sets(c: int = 6) -> list[Tensor]:
     """Fixed check inputs: realistic synthetic sets (B = 64) and one single set (B = 1), float32."""
-    from cuboidcli.learn.solver_data import SyntheticConfig, seeded_batch
+    from cuboidcli.solvers.synthetic import SyntheticConfig, seeded_batch
 
     data = SyntheticConfig(points=c)
     return [seeded_batch(64, data, seed=7).points, seeded_batch(1, data, seed=8).points]
@@ -97,8 +98,8 @@ def export_net_onnx(
 
 
 def export_solver_onnx(weights_path: str | None, out_path: str, opset: int = 17) -> Path:
-    """Export solver weights (None = the shipped ``models/solver_v1.pt``) to ONNX; returns the path."""
-    path = Path(weights_path) if weights_path is not None else default_weights_path()
+    """Export solver weights (None = the default, ``models/solver_v2.pt``) to ONNX; returns the path."""
+    path = Path(weights_path) if weights_path is not None else default_path("solver")
     net = load_solver_net(path, "cpu")
     sha = hashlib.sha256(path.read_bytes()).hexdigest()
     return export_net_onnx(net, out_path, opset, meta={"weights": path.name, "weights_sha256": sha})

@@ -9,26 +9,12 @@ is cheap.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 
 import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
-
-
-@lru_cache(maxsize=8)
-def _directions(camera: Camera, step: int) -> np.ndarray:
-    u, v = camera.pixel_grid(step)
-    d = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones_like(u)], -1)
-    d = d.astype(np.float32)
-    d.flags.writeable = False  # shared between calls
-    return d
-
-
-def pixel_directions(camera: Camera, step: int = 1) -> np.ndarray:
-    """Camera-frame ray directions with z = 1 for every ``step``-th pixel: (H', W', 3) float32, read-only."""
-    return _directions(camera, step)
+from cuboidcli.synth.rays import pixel_directions
 
 
 @dataclass

@@ -11,6 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cuboidcli.camera import Camera
+from cuboidcli.synth.rays import pixel_directions
 
 
 @dataclass(frozen=True)
@@ -139,8 +140,6 @@ def simulate_depth(
     z = depth_m.astype(np.float64)
     keep = (z >= options.min_range_m) & (z <= options.max_range_m)
     if options.grazing:
-        from cuboidcli.synth.render import pixel_directions
-
         rays = pixel_directions(camera)
         cos = np.abs(np.einsum("hwk,hwk->hw", normal, rays)) / np.sqrt(np.einsum("hwk,hwk->hw", rays, rays))
         lo, hi = options.grazing_cos

@@ -12,7 +12,8 @@ import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.synth.mesh import Soup
-from cuboidcli.synth.render import Hits, RayCaster, pixel_directions
+from cuboidcli.synth.rays import pixel_directions
+from cuboidcli.synth.render import Hits, RayCaster
 from cuboidcli.synth.world import World
 
 KINDS = ("plain", "paint", "wood", "fabric", "planks", "tiles", "carpet", "leaf")

@@ -1,4 +1,5 @@
-"""Synthetic minimal sets for pre-training the neural solver (paper appendix "Neural Cuboid Solver").
+"""Synthetic minimal sets: the neural solver's pre-training data (paper appendix "Neural Cuboid Solver")
+and the fixed inputs of the ONNX export's parity check (:mod:`cuboidcli.solvers.onnx`).
 
 Random boxes are seen by a camera at the origin (OpenCV frame, metres). C points are drawn on the sides
 that face the camera, a side being chosen with probability proportional to its area times |cos| of the

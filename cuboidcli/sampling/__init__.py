@@ -1,8 +1,10 @@
-"""Samplers: per-point sampling weights from which minimal sets are drawn (paper Sec. 3.2.1).
+"""Sampling minimal sets (paper Sec. 3.2.1): per-point sampling weights from which minimal sets are drawn.
 
 A sampler returns Q sampling distributions over the fitting points and a selection distribution q over
 them. A hypothesis first picks a distribution by q, then draws its C points from it with replacement.
-Uniform sampling has Q = 1; the learned sampler (Q = 4) lives in :mod:`cuboidcli.learn`.
+Uniform sampling has Q = 1; the learned sampler (Q = 4) is in :mod:`cuboidcli.sampling.learned`, minimal
+sets localised in a 3D ball in :mod:`cuboidcli.sampling.proposals`. :func:`make_sampler` builds a sampler
+by name. Fitting imports this package; it imports neither fitting nor the solvers.
 """
 
 from __future__ import annotations
@@ -70,7 +72,7 @@ class SequentialSampler:
 
 class LocalSampler(SequentialSampler):
     """Sequential-RANSAC weights for the first point; every minimal set localised in a 3D ball around it
-    (``local_fraction`` 1, whatever the configuration says; see :mod:`cuboidcli.fitting.proposals`)."""
+    (``local_fraction`` 1, whatever the configuration says; see :mod:`cuboidcli.sampling.proposals`)."""
 
     name = "local"
     local_fraction = 1.0
@@ -125,7 +127,7 @@ def draw_hypotheses(
     """One batch of minimal sets: the first ``round(local_fraction * hypotheses)`` localised (first point
     from the sampler's maps, the others from a 3D ball around it), the rest global (all C points from the
     maps, the paper's sets). Returns (maps (H,), indices (H, C), local (H,) bool), all on the CPU."""
-    from cuboidcli.fitting.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
+    from cuboidcli.sampling.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
 
     frac = local_fraction_of(sampler, local_fraction)
     n_local = min(max(round(frac * hypotheses), 0), hypotheses)
@@ -160,8 +162,8 @@ def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:
     if name == "local":
         return LocalSampler()
     if name == "learned":
-        from cuboidcli.bundles import weights_for
-        from cuboidcli.learn.sampler_net import LearnedSampler
+        from cuboidcli.sampling.learned import LearnedSampler
+        from cuboidcli.weights import weights_for
 
         return LearnedSampler.load(weights_for("sampler", weights_dir), device=device)
     raise ValueError(f"unknown sampler {name!r}; choose uniform, sequential, local or learned")

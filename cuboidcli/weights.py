@@ -1,11 +1,25 @@
-"""Which shipped weights go together (the "bundles" in ``models/``).
+"""The weights registry: which file each network loads. Everything that picks weights asks here.
 
-The learned parts are trained as sets: the sampling-weight network with the numerical solver on true depth
-(``models/``), fine-tuned together with the neural solver (``models/neural/``), or fine-tuned from RGB with
-the built-in depth network (``models/rgb/``, opt-in: see :func:`default_depth_weights`). Each bundle is a
-folder in the layout ``--weights DIR`` reads (``sampler_v2.pt``, ``solver_v2.pt``, ``depth_v2.pt``). When
-the user gives no ``--weights``, :func:`default_weights_dir` picks the bundle that matches the
-configuration; a bundle that is not there falls back to the top-level ``models/`` files.
+- **Names**: the versioned file names of the networks in a weights folder (:data:`FILES`), the layout the
+  trainers write and ``--weights DIR`` reads.
+- **Shipped weights**: :data:`MODELS_DIR`, the repository's ``models/`` (``cuboidcli/models`` in an
+  installed wheel, see setup.py), ``$CUBOIDS_MODELS`` overriding it; :func:`shipped_path` finds a path the
+  documentation writes (``models/solver_v1.pt``) there.
+- **Defaults**: :func:`default_path` per network kind, with the environment overrides :data:`ENV`
+  (``$CUBOIDS_SAMPLER_WEIGHTS``, ``$CUBOIDS_SOLVER_WEIGHTS``, ``$CUBOIDS_DEPTH_WEIGHTS``).
+- **Resolution**: :func:`resolve` turns a weights value (None, a folder, a file) into the file a network
+  loads; :func:`weights_for` and :func:`check_weights_option` route one ``--weights`` value to the networks
+  of a run by what a file holds (:func:`checkpoint_kind`); :func:`files_loaded` lists what a run loads.
+- **Bundles**: the learned parts are trained as sets: the sampling-weight network with the numerical solver
+  on true depth (``models/``), fine-tuned together with the neural solver (``models/neural/``), or
+  fine-tuned from RGB with the built-in depth network (``models/rgb/``, opt-in: see
+  :func:`default_depth_weights`). Each bundle is a folder in the ``--weights DIR`` layout. When the user
+  gives no ``--weights``, :func:`default_weights_dir` picks the bundle that matches the configuration; a
+  bundle that is not there falls back to the top-level ``models/`` files.
+- **Hashes**: :func:`short_hash` and :func:`describe_weights` (the default files with their SHA-256).
+
+The network modules themselves are in :mod:`cuboidcli.nets`, the file reader in
+:mod:`cuboidcli.io.checkpoints`.
 """
 
 from __future__ import annotations
@@ -14,6 +28,21 @@ import hashlib
 import os
 from functools import lru_cache
 from pathlib import Path
+
+#: The kinds of network, as :func:`cuboidcli.io.checkpoints.checkpoint_kind` tells them apart.
+KINDS = ("sampler", "solver", "depth")
+
+#: Versioned file name of each network in a weights folder (what the trainers write; a fine-tuned bundle
+#: holds ``depth_v2.pt``).
+FILES = {"sampler": "sampler_v2.pt", "solver": "solver_v2.pt", "depth": "depth_v2.pt"}
+#: Solver files looked for in a folder, first found: ``solver_v1.pt`` in folders of the first release.
+SOLVER_FILES = ("solver_v2.pt", "solver_v1.pt")
+#: The environment variable that replaces each network's default weights file.
+ENV = {
+    "sampler": "CUBOIDS_SAMPLER_WEIGHTS",
+    "solver": "CUBOIDS_SOLVER_WEIGHTS",
+    "depth": "CUBOIDS_DEPTH_WEIGHTS",
+}
 
 
 def _shipped_models_dir() -> Path:
@@ -27,6 +56,9 @@ def _shipped_models_dir() -> Path:
 
 #: The shipped weights; ``$CUBOIDS_MODELS`` overrides them.
 MODELS_DIR = Path(os.environ.get("CUBOIDS_MODELS") or _shipped_models_dir())
+
+#: Each network's default weights file, relative to MODELS_DIR.
+DEFAULTS = {"sampler": "sampler_v2.pt", "solver": "solver_v2.pt", "depth": "depth_v3.pt"}
 
 #: The files loaded when no weights are given: (what uses it, path relative to MODELS_DIR).
 DEFAULT_FILES = (
@@ -89,7 +121,30 @@ def default_depth_weights() -> Path:
     end-to-end fine-tuned version ``models/rgb/depth_v2.pt`` stay
     available with ``--depth-model``.
     """
-    return MODELS_DIR / "depth_v3.pt"
+    return MODELS_DIR / DEFAULTS["depth"]
+
+
+def default_path(kind: str) -> Path:
+    """The default weights file of a network ``kind``: ``$CUBOIDS_<KIND>_WEIGHTS`` if set, else the shipped
+    file (``models/sampler_v2.pt``, ``models/solver_v2.pt``, ``models/depth_v3.pt``)."""
+    env = os.environ.get(ENV[kind])
+    return Path(env) if env else MODELS_DIR / DEFAULTS[kind]
+
+
+def resolve(kind: str, weights: str | os.PathLike | None = None) -> Path:
+    """The file a network of ``kind`` loads for a weights value. None: :func:`default_path`. Otherwise, as
+    each loader has always read it: sampler: a ``.pt`` file as given, any other path as a folder holding
+    ``sampler_v2.pt``; solver: a folder's ``solver_v2.pt`` (``solver_v1.pt`` if only that is there), a file
+    as given; depth: the path as given."""
+    if weights is None:
+        return default_path(kind)
+    path = Path(weights)
+    if kind == "sampler":
+        return path if path.suffix == ".pt" else path / FILES["sampler"]
+    if kind == "solver" and path.is_dir():
+        named = [path / name for name in SOLVER_FILES]
+        return next((p for p in named if p.is_file()), named[0])
+    return path
 
 
 def checkpoint_kind(path: str | os.PathLike) -> str | None:
@@ -126,6 +181,12 @@ def networks_loaded(solver: str, sampler: str) -> list[str]:
     """The kinds of network a configuration loads from ``--weights``."""
     used = {"solver": solver == "neural", "sampler": sampler == "learned"}
     return [kind for kind, loaded in used.items() if loaded]
+
+
+def files_loaded(solver: str, sampler: str, weights: str | os.PathLike | None = None) -> dict[str, Path]:
+    """The weights file of each network a configuration loads for a ``--weights`` value (None: the
+    defaults), by kind: ``{"solver": ..., "sampler": ...}``."""
+    return {kind: resolve(kind, weights_for(kind, weights)) for kind in networks_loaded(solver, sampler)}
 
 
 def check_weights_option(weights: str | os.PathLike | None, solver: str, sampler: str) -> None:

@@ -18,17 +18,20 @@ research code ran it at test time by accident).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 
 import torch
 from torch import Tensor, nn
 
 from cuboidcli.geometry.rotations import rotation_6d_to_matrix
+from cuboidcli.nets.checkpoint import NetConfig, build_net
 
 
 @dataclass(frozen=True)
-class SolverNetConfig:
+class SolverNetConfig(NetConfig):
     """Shape of the network and the size bounds its output heads are scaled to."""
+
+    label = "solver-net"
 
     width: int = 64
     """d: channels of the per-point features."""
@@ -44,17 +47,6 @@ class SolverNetConfig:
     """a_max: largest half-size, m; also the scale of the translation head (indoor value)."""
     input_scale: float = 0.5
     """Factor applied to the centred points so that the net sees O(1) values, 1/m (1 / a_max)."""
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> SolverNetConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown solver-net config keys {sorted(unknown)}")
-        return cls(**d)
 
 
 class EncoderLayer(nn.Module):
@@ -129,20 +121,6 @@ class SolverNet(nn.Module):
         return centers, half_sizes, rotations
 
 
-def parameter_count(net: nn.Module) -> int:
-    return sum(p.numel() for p in net.parameters())
-
-
-def checkpoint_dict(net: SolverNet, meta: dict | None = None) -> dict:
-    """The weights file format: ``{"config", "state_dict", "meta"}``, loadable with ``weights_only=True``."""
-    state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
-    return {"config": net.config.to_dict(), "state_dict": state, "meta": dict(meta or {})}
-
-
 def net_from_checkpoint(ckpt: dict) -> SolverNet:
-    """Rebuild the exact net of a :func:`checkpoint_dict`, in eval mode, on the CPU."""
-    if not isinstance(ckpt, dict) or "config" not in ckpt or "state_dict" not in ckpt:
-        raise ValueError("not a solver checkpoint: expected a dict with 'config' and 'state_dict'")
-    net = SolverNet(SolverNetConfig.from_dict(ckpt["config"]))
-    net.load_state_dict(ckpt["state_dict"])
-    return net.eval()
+    """Rebuild the exact net of a checkpoint dict, in eval mode, on the CPU."""
+    return build_net(ckpt, SolverNet, SolverNetConfig, "solver")

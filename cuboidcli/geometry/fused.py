@@ -7,6 +7,9 @@ computed without materialising (H, N, 6, 3) tensors (the research code's 8.7 GB)
 sight in one interval, so a slab test finds the at most two occluding sides; f_I underflows far from the
 box. Pairs whose squared distance exceeds ``tau * (1 + 40 / beta)`` and which are not occluded get value 0
 instead of f_I < 1e-17. Tested against the torch reference kernels in :mod:`cuboidcli.geometry.kernels`.
+
+The numerical solver's fused loop (:mod:`cuboidcli.solvers.adam_fused`) shares :func:`camera_local` and
+:func:`slab_occlusion`; the scorer (:mod:`cuboidcli.fitting.scoring`) and assignment call the loops here.
 """
 
 from __future__ import annotations

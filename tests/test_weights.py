@@ -1,12 +1,13 @@
-"""Which shipped weights a configuration picks, and where a ``--weights`` file goes."""
+"""The weights registry (cuboidcli.weights): which shipped weights a configuration picks, where a
+``--weights`` value goes, the defaults and their environment overrides."""
 
 from __future__ import annotations
 
 import pytest
 import torch
 
-from cuboidcli import bundles
-from cuboidcli.bundles import MODELS_DIR, checkpoint_kind, default_weights_dir, weights_for
+from cuboidcli import weights
+from cuboidcli.weights import MODELS_DIR, checkpoint_kind, default_weights_dir, weights_for
 
 
 @pytest.mark.parametrize(
@@ -46,7 +47,7 @@ def test_kind_is_read_once_per_file_version(tmp_path, monkeypatch):
     loads = []
     real_load = torch.load
     monkeypatch.setattr(torch, "load", lambda *a, **k: loads.append(a[0]) or real_load(*a, **k))
-    bundles._checkpoint_kind.cache_clear()
+    weights._checkpoint_kind.cache_clear()
     assert [checkpoint_kind(path) for _ in range(3)] == ["solver"] * 3
     assert len(loads) == 1
     torch.save({"config": {"maps": 4}, "state_dict": {}}, path)  # rewritten: read again
@@ -57,29 +58,29 @@ def test_default_bundles():
     assert default_weights_dir("numerical") is None  # top-level models/
     assert default_weights_dir("neural") == MODELS_DIR / "neural"
     assert default_weights_dir("numerical", rgb=True, builtin_depth=False) is None
-    assert bundles.default_depth_weights() == MODELS_DIR / "depth_v3.pt"
+    assert weights.default_depth_weights() == MODELS_DIR / "depth_v3.pt"
 
 
 def test_documented_models_paths_resolve_to_the_shipped_files(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # no models/ here, as for an installed package
-    assert bundles.shipped_path("models/solver_v1.pt") == MODELS_DIR / "solver_v1.pt"
-    assert bundles.shipped_path("models/rgb/depth_v2.pt") == MODELS_DIR / "rgb" / "depth_v2.pt"
+    assert weights.shipped_path("models/solver_v1.pt") == MODELS_DIR / "solver_v1.pt"
+    assert weights.shipped_path("models/rgb/depth_v2.pt") == MODELS_DIR / "rgb" / "depth_v2.pt"
     # Other paths, and documented-looking paths that are not shipped, stay as given.
-    assert bundles.shipped_path("models/nothing.pt").as_posix() == "models/nothing.pt"
-    assert bundles.shipped_path("mine/solver.pt").as_posix() == "mine/solver.pt"
+    assert weights.shipped_path("models/nothing.pt").as_posix() == "models/nothing.pt"
+    assert weights.shipped_path("mine/solver.pt").as_posix() == "mine/solver.pt"
     (tmp_path / "models").mkdir()
     (tmp_path / "models" / "solver_v1.pt").write_bytes(b"local")
-    assert bundles.shipped_path("models/solver_v1.pt").as_posix() == "models/solver_v1.pt"
+    assert weights.shipped_path("models/solver_v1.pt").as_posix() == "models/solver_v1.pt"
 
 
 def test_version_lists_the_default_weights_with_their_hashes():
-    lines = bundles.describe_weights()
+    lines = weights.describe_weights()
     assert lines[0].startswith(f"weights: {MODELS_DIR}")
     # The short hashes agree with the full ones on the model card of the neural bundle.
     card = (MODELS_DIR / "neural" / "README.md").read_text()
     neural = next(line for line in lines if "neural/solver_v2.pt" in line)
     assert neural.split("sha256 ")[1][:12] in card
-    assert len(lines) == 1 + len(bundles.DEFAULT_FILES) and not any("MISSING" in x for x in lines)
+    assert len(lines) == 1 + len(weights.DEFAULT_FILES) and not any("MISSING" in x for x in lines)
 
 
 def test_the_wheel_ships_every_weights_file_and_model_card():
@@ -91,7 +92,44 @@ def test_the_wheel_ships_every_weights_file_and_model_card():
     namespace: dict = {"__file__": str(setup_py)}
     exec(compile(setup_py.read_text().split("\nsetup(")[0], str(setup_py), "exec"), namespace)
     shipped = {p.relative_to(MODELS_DIR).as_posix() for p in namespace["shipped_files"]()}
-    for _, rel in bundles.DEFAULT_FILES:
+    for _, rel in weights.DEFAULT_FILES:
         assert rel in shipped
     assert {"solver_v1.pt", "sampler_v3.pt", "rgb/depth_v2.pt", "depth_v1.pt", "README.md"} <= shipped
     assert all(name.endswith((".pt", ".md")) for name in shipped)
+
+
+def test_defaults_and_their_environment_overrides(tmp_path, monkeypatch):
+    for kind in weights.KINDS:
+        monkeypatch.delenv(weights.ENV[kind], raising=False)
+    assert weights.default_path("sampler") == MODELS_DIR / "sampler_v2.pt"
+    assert weights.default_path("solver") == MODELS_DIR / "solver_v2.pt"
+    assert weights.default_path("depth") == weights.default_depth_weights() == MODELS_DIR / "depth_v3.pt"
+    assert all(weights.resolve(kind) == weights.default_path(kind) for kind in weights.KINDS)
+    monkeypatch.setenv("CUBOIDS_SOLVER_WEIGHTS", str(tmp_path / "mine.pt"))
+    assert weights.resolve("solver", None) == tmp_path / "mine.pt"
+
+
+def test_resolve_a_weights_value_as_each_loader_reads_it(tmp_path):
+    folder = tmp_path / "bundle"
+    folder.mkdir()
+    assert weights.resolve("sampler", folder) == folder / "sampler_v2.pt"
+    assert weights.resolve("sampler", tmp_path / "s.pt") == tmp_path / "s.pt"
+    assert weights.resolve("solver", folder) == folder / "solver_v2.pt"  # neither there: the current name
+    (folder / "solver_v1.pt").write_bytes(b"")
+    assert weights.resolve("solver", folder) == folder / "solver_v1.pt"  # a folder of the first release
+    (folder / "solver_v2.pt").write_bytes(b"")
+    assert weights.resolve("solver", folder) == folder / "solver_v2.pt"
+    assert weights.resolve("depth", folder / "d.pt") == folder / "d.pt"
+
+
+def test_files_loaded_by_a_configuration(tmp_path):
+    assert weights.files_loaded("numerical", "sequential") == {}
+    assert weights.files_loaded("neural", "learned", tmp_path) == {
+        "solver": tmp_path / "solver_v2.pt",
+        "sampler": tmp_path / "sampler_v2.pt",
+    }
+    solver = MODELS_DIR / "solver_v2.pt"  # a solver file: the sampler keeps its default
+    assert weights.files_loaded("neural", "learned", solver) == {
+        "solver": solver,
+        "sampler": weights.default_path("sampler"),
+    }

@@ -1,4 +1,4 @@
-"""The sampling-weight network (paper Sec. 3.2.1, appendix "Sampling Weight Network") and its Sampler.
+"""The sampling-weight network (paper Sec. 3.2.1, appendix "Sampling Weight Network").
 
 Input, per frame on the fitting grid (Hs, Ws) (60x80 for NYU): the depth normalised by the training set's
 mean and standard deviation (0 where invalid) and the state s = f_OAI(y, M) of the cuboids selected so far
@@ -20,30 +20,23 @@ needs without a division. Weights are plain dicts ``{"config", "state_dict", "me
 from __future__ import annotations
 
 import math
-import os
-from dataclasses import asdict, dataclass, fields
-from pathlib import Path
+from dataclasses import dataclass
 
 import torch
 import torch.nn.functional as F
 from torch import Tensor, nn
 
-from cuboidcli.bundles import MODELS_DIR
-from cuboidcli.fitting.sampling import SamplingContext
-
-#: Versioned file name of the sampler weights inside a weights folder.
-WEIGHTS_NAME = "sampler_v2.pt"
-#: The shipped weights, in the shipped models folder (:data:`cuboidcli.bundles.MODELS_DIR`).
-DEFAULT_WEIGHTS = MODELS_DIR / WEIGHTS_NAME
-
+from cuboidcli.nets.checkpoint import NetConfig, build_net
 
 #: Sampling priors the network's maps can be built on (see SamplerNetConfig.prior).
 PRIORS = ("none", "unexplained")
 
 
 @dataclass(frozen=True)
-class SamplerNetConfig:
+class SamplerNetConfig(NetConfig):
     """Shape of the network and its input normalisation."""
+
+    label = "sampler-net"
 
     maps: int = 4
     """Q: sampling-weight maps (4 in the paper)."""
@@ -79,17 +72,6 @@ class SamplerNetConfig:
             raise ValueError(f"prior must be one of {PRIORS}, got {self.prior!r}")
         if not 0.0 < self.prior_floor <= 1.0:
             raise ValueError(f"prior_floor must be in (0, 1], got {self.prior_floor}")
-
-    def to_dict(self) -> dict:
-        return asdict(self)
-
-    @classmethod
-    def from_dict(cls, d: dict) -> SamplerNetConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown sampler-net config keys {sorted(unknown)}")
-        return cls(**d)
 
 
 def _conv_in_relu(cin: int, cout: int, stride: int = 1) -> nn.Sequential:
@@ -189,82 +171,6 @@ class SamplerNet(nn.Module):
         return SamplerOutput(log_p=log_p, p=log_p.exp(), log_q=log_q, q=log_q.exp(), log_p_free=log_p_free)
 
 
-def grid_inputs(ctx: SamplingContext) -> tuple[Tensor, Tensor, Tensor]:
-    """A sampling context as network input (1, Hs, Ws) each: depth m, state, valid mask.
-
-    Validity comes from ``grid_index`` (the fitting points) so that the maps cover exactly those points.
-    """
-    hs, ws = ctx.grid_shape
-    device = ctx.depth_grid.device
-    idx = ctx.grid_index.to(device)
-    valid = torch.zeros(hs * ws, dtype=torch.bool, device=device)
-    valid[idx] = True
-    state = torch.zeros(hs * ws, dtype=torch.float32, device=device)
-    state[idx] = ctx.state.to(device, torch.float32)
-    depth = ctx.depth_grid.to(torch.float32).reshape(hs * ws)
-    return depth.view(1, hs, ws), state.view(1, hs, ws), valid.view(1, hs, ws)
-
-
-def parameter_count(net: nn.Module) -> int:
-    return sum(p.numel() for p in net.parameters())
-
-
-def checkpoint_dict(net: SamplerNet, meta: dict | None = None) -> dict:
-    """The weights file format ``{"config", "state_dict", "meta"}``, loadable with ``weights_only=True``."""
-    state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
-    return {"config": net.config.to_dict(), "state_dict": state, "meta": dict(meta or {})}
-
-
 def net_from_checkpoint(ckpt: dict) -> SamplerNet:
-    """Rebuild the exact net of a :func:`checkpoint_dict` on the CPU, in eval mode."""
-    if not isinstance(ckpt, dict) or "config" not in ckpt or "state_dict" not in ckpt:
-        raise ValueError("not a sampler checkpoint: expected a dict with 'config' and 'state_dict'")
-    net = SamplerNet(SamplerNetConfig.from_dict(ckpt["config"]))
-    net.load_state_dict(ckpt["state_dict"])
-    return net.eval()
-
-
-def weights_path(weights_dir: str | os.PathLike | None) -> Path:
-    """Where the sampler weights are: a .pt file as given, ``<folder>/sampler_v2.pt``, or the shipped
-    ``models/sampler_v2.pt`` (``$CUBOIDS_SAMPLER_WEIGHTS`` overrides it) when None."""
-    if weights_dir is None:
-        return Path(os.environ.get("CUBOIDS_SAMPLER_WEIGHTS", DEFAULT_WEIGHTS))
-    path = Path(weights_dir)
-    return path if path.suffix == ".pt" else path / WEIGHTS_NAME
-
-
-class LearnedSampler:
-    """Sampler (``name = "learned"``) backed by :class:`SamplerNet`: Q = config.maps distributions.
-
-    ``distributions(ctx)`` returns p (Q, N) float64, each row summing to 1 over the N fitting points, and
-    q (Q,) float64. The net runs in eval mode without gradients.
-    """
-
-    name = "learned"
-
-    def __init__(self, net: SamplerNet, device: str | torch.device = "cpu") -> None:
-        self.device = torch.device(device)
-        self.net = net.to(self.device).eval()
-
-    @classmethod
-    def load(cls, weights_dir: str | os.PathLike | None = None, device: str = "cpu") -> LearnedSampler:
-        path = weights_path(weights_dir)
-        if not path.is_file():
-            raise FileNotFoundError(
-                f"sampler weights {path} not found; train them with 'cuboids train sampler DATA' and pass "
-                "their folder with --weights, or use --sampler sequential"
-            )
-        from cuboidcli.io.checkpoints import load_net
-
-        return cls(load_net(path, "sampler", net_from_checkpoint), device)
-
-    def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
-        depth, state, valid = (t.to(self.device) for t in grid_inputs(ctx))
-        with torch.no_grad():
-            out = self.net(depth, state, valid)
-        idx = ctx.grid_index.to(self.device)
-        p = out.p[0].flatten(1)[:, idx].double()  # (Q, N)
-        # float32 softmax sums deviate from 1 by ~1e-7; renormalise in float64 for the multinomial draws
-        p = p / p.sum(1, keepdim=True)
-        q = out.q[0].double()
-        return p.to(ctx.points.device), (q / q.sum()).to(ctx.points.device)
+    """Rebuild the exact net of a checkpoint dict, in eval mode, on the CPU."""
+    return build_net(ckpt, SamplerNet, SamplerNetConfig, "sampler")

@@ -17,11 +17,13 @@ apparent size), as canonical-camera metric depth estimators do.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, fields
+from dataclasses import dataclass
 
 import torch
 import torch.nn.functional as F  # noqa: N812 - the usual alias
 from torch import Tensor, nn
+
+from cuboidcli.nets.checkpoint import NetConfig, build_net
 
 #: ImageNet statistics, the usual RGB normalisation; kept in the config so a checkpoint is self-contained.
 IMAGENET_MEAN = (0.485, 0.456, 0.406)
@@ -29,8 +31,10 @@ IMAGENET_STD = (0.229, 0.224, 0.225)
 
 
 @dataclass(frozen=True)
-class DepthNetConfig:
+class DepthNetConfig(NetConfig):
     """Shape of the network, its input size and the output range. Stored in every checkpoint."""
+
+    label = "depth-net"
 
     channels: tuple[int, ...] = (16, 32, 64, 128, 192)
     """Encoder channels at 1/2, 1/4, 1/8, 1/16 and 1/32 of the input resolution."""
@@ -48,18 +52,6 @@ class DepthNetConfig:
     """Per-channel mean subtracted from RGB in [0, 1]."""
     std: tuple[float, float, float] = IMAGENET_STD
     """Per-channel standard deviation RGB in [0, 1] is divided by."""
-
-    def to_dict(self) -> dict:
-        d = asdict(self)
-        return {k: list(v) if isinstance(v, tuple) else v for k, v in d.items()}
-
-    @classmethod
-    def from_dict(cls, d: dict) -> DepthNetConfig:
-        known = {f.name for f in fields(cls)}
-        unknown = set(d) - known
-        if unknown:
-            raise ValueError(f"unknown depth-net config keys {sorted(unknown)}")
-        return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in d.items()})
 
 
 def _conv_bn_relu(c_in: int, c_out: int, stride: int = 1) -> nn.Sequential:
@@ -118,20 +110,6 @@ class DepthNet(nn.Module):
         return log_depth.exp()
 
 
-def parameter_count(net: nn.Module) -> int:
-    return sum(p.numel() for p in net.parameters())
-
-
-def checkpoint_dict(net: DepthNet, meta: dict | None = None) -> dict:
-    """The weights file format ``{"config", "state_dict", "meta"}``, loadable with ``weights_only=True``."""
-    state = {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
-    return {"config": net.config.to_dict(), "state_dict": state, "meta": dict(meta or {})}
-
-
 def net_from_checkpoint(ckpt: dict) -> DepthNet:
-    """Rebuild the exact net of a :func:`checkpoint_dict`, in eval mode, on the CPU."""
-    if not isinstance(ckpt, dict) or "config" not in ckpt or "state_dict" not in ckpt:
-        raise ValueError("not a depth-net checkpoint: expected a dict with 'config' and 'state_dict'")
-    net = DepthNet(DepthNetConfig.from_dict(ckpt["config"]))
-    net.load_state_dict(ckpt["state_dict"])
-    return net.eval()
+    """Rebuild the exact net of a checkpoint dict, in eval mode, on the CPU."""
+    return build_net(ckpt, DepthNet, DepthNetConfig, "depth-net")

@@ -1,0 +1,272 @@
+"""The package's layers: imports point down only, and no modules import each other in a circle.
+
+Every ``import`` and ``from ... import`` of ``cuboidcli`` in the package is read with :mod:`ast`, at module
+level and inside functions alike (a lazy import is still a dependency). Each module belongs to the unit
+named by its first component below ``cuboidcli`` (``cuboidcli.fitting.pipeline`` -> ``fitting``,
+``cuboidcli.weights`` -> ``weights``); the units are ordered in :data:`LAYERS`, lowest first:
+
+====  ===============================  =====================================================================
+rank  units                            what they hold
+====  ===============================  =====================================================================
+0     cuboidcli (root), geometry       ``__version__``; torch and numba kernels, rotations, gravity
+1     camera, cuboid                   intrinsics; the oriented box
+2     io                               readers and writers: depth maps, results, datasets, the weights reader
+3     nets                             the networks a user runs (sampler, solver, depth) and their one format
+4     weights                          the weights registry: names, shipped bundles, defaults, hashes
+5     solvers, sampling, depth         cuboid solvers; samplers and minimal sets; depth from RGB
+6     fitting                          the estimator: config, pipeline, scoring, winner, frame loading
+7     export, synth                    GLB / PLY / OBJ / PNG outputs; synthetic scenes and datasets
+8     api, scaleout, folder            the Python API; many frames on workers or Ray; folders of frames
+9     evaluation                       metrics, datasets, runs
+10    learn                            training: trainers, losses, data (training only)
+11    cli                              the ``cuboids`` command: parses, prints, calls the library
+====  ===============================  =====================================================================
+
+A module may import its own unit, units of its rank and units of lower ranks. Within that, the module
+graph must have no cycle, and neither may the graph of units of one rank (``solvers`` <-> ``sampling``).
+Imports under ``if TYPE_CHECKING:`` never run: they must point down like any other but do not count as
+cycles. The package root's lazy exports (``cuboidcli.fit`` and friends, resolved with ``importlib`` on
+first use) are not import statements and are not checked here.
+
+README.md's "Package layout" section shows the same table (:func:`test_readme_shows_the_layers`).
+
+Two more rules: inference never imports training code (only ``learn`` and ``cli`` import ``cuboidcli.learn``
+and ``cuboidcli.depth.train``), and the library outside ``cuboidcli/cli`` never imports the command-line
+packages (typer, rich, click).
+"""
+
+from __future__ import annotations
+
+import ast
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[1] / "cuboidcli"
+
+#: Units, lowest layer first; units in one tuple share a rank (see the module docstring).
+LAYERS: tuple[tuple[str, ...], ...] = (
+    ("cuboidcli", "geometry"),
+    ("camera", "cuboid"),
+    ("io",),
+    ("nets",),
+    ("weights",),
+    ("solvers", "sampling", "depth"),
+    ("fitting",),
+    ("export", "synth"),
+    ("api", "scaleout", "folder"),
+    ("evaluation",),
+    ("learn",),
+    ("cli",),
+)
+RANK = {unit: rank for rank, units in enumerate(LAYERS) for unit in units}
+
+#: Training code: imported only by the units in TRAINING_USERS (and by itself).
+TRAINING = ("cuboidcli.learn", "cuboidcli.depth.train")
+TRAINING_USERS = ("learn", "cli")
+#: Command-line packages the library (everything but cuboidcli.cli) never imports.
+CLI_PACKAGES = ("typer", "rich", "click")
+
+
+@dataclass(frozen=True)
+class Import:
+    source: str
+    """The importing module (``cuboidcli.fitting.pipeline``)."""
+    target: str
+    """The imported module, or for a name imported from a module, that module."""
+    line: int
+    type_only: bool
+    """Under ``if TYPE_CHECKING:``."""
+
+    def __str__(self) -> str:
+        return f"{self.source} (line {self.line}) imports {self.target}"
+
+
+def module_name(path: Path) -> str:
+    parts = list(path.relative_to(PACKAGE.parent).with_suffix("").parts)
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+@cache
+def modules() -> dict[str, Path]:
+    return {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def unit(module: str) -> str:
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
+def _type_checking_lines(tree: ast.AST) -> set[int]:
+    """Line numbers of the statements inside ``if TYPE_CHECKING:`` blocks."""
+    lines: set[int] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If):
+            test = node.test
+            name = test.id if isinstance(test, ast.Name) else getattr(test, "attr", None)
+            if name == "TYPE_CHECKING":
+                for child in node.body:
+                    lines.update(range(child.lineno, (child.end_lineno or child.lineno) + 1))
+    return lines
+
+
+def _absolute(module: str, is_package: bool, node: ast.ImportFrom) -> str:
+    if not node.level:
+        return node.module or ""
+    base = module.split(".") if is_package else module.split(".")[:-1]
+    base = base[: len(base) - node.level + 1]
+    return ".".join(base + ([node.module] if node.module else []))
+
+
+def _owner(name: str) -> str:
+    """The package module that defines ``name`` (a module, or a name inside one)."""
+    known = modules()
+    while name not in known and "." in name:
+        name = name.rpartition(".")[0]
+    return name
+
+
+def imported_names(path: Path) -> list[tuple[str, int, bool]]:
+    """(dotted module name, line, type-only) for every import statement in a file, at any depth: for
+    ``from m import x`` both ``m.x`` and ``m`` are candidates, resolved by the caller."""
+    tree = ast.parse(path.read_text(), str(path))
+    module, is_package = module_name(path), path.name == "__init__.py"
+    type_only = _type_checking_lines(tree)
+    out = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [(alias.name, node.lineno, node.lineno in type_only) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = _absolute(module, is_package, node)
+            out += [(f"{base}.{alias.name}", node.lineno, node.lineno in type_only) for alias in node.names]
+    return out
+
+
+@cache
+def package_imports() -> tuple[Import, ...]:
+    """Every import of a cuboidcli module by a cuboidcli module (not of itself)."""
+    found = []
+    for source, path in modules().items():
+        for name, line, type_only in imported_names(path):
+            if name == "cuboidcli" or name.startswith("cuboidcli."):
+                target = _owner(name)
+                if target != source:
+                    found.append(Import(source, target, line, type_only))
+    return tuple(found)
+
+
+def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """The strongly connected components of more than one node (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    found: list[list[str]] = []
+
+    def visit(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on_stack.add(v)
+        for w in sorted(edges.get(v, ())):
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in on_stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            component = []
+            while True:
+                w = stack.pop()
+                on_stack.discard(w)
+                component.append(w)
+                if w == v:
+                    break
+            if len(component) > 1:
+                found.append(sorted(component))
+
+    for v in sorted(edges):
+        if v not in index:
+            visit(v)
+    return found
+
+
+def test_every_unit_has_a_layer():
+    units = {unit(m) for m in modules()}
+    assert not units - set(RANK), f"add these packages or modules to LAYERS: {sorted(units - set(RANK))}"
+    assert len(RANK) == sum(len(units) for units in LAYERS), "a unit is listed twice in LAYERS"
+
+
+def test_imports_point_down():
+    upward = [
+        f"{imp}: {unit(imp.source)} (rank {RANK[unit(imp.source)]}) may not import {unit(imp.target)} "
+        f"(rank {RANK[unit(imp.target)]})"
+        for imp in package_imports()
+        if RANK[unit(imp.target)] > RANK[unit(imp.source)]
+    ]
+    assert not upward, "imports that point up:\n" + "\n".join(upward)
+
+
+def test_no_module_cycles():
+    edges: dict[str, set[str]] = {}
+    for imp in package_imports():
+        if not imp.type_only:
+            edges.setdefault(imp.source, set()).add(imp.target)
+    found = "\n".join(" <-> ".join(c) for c in cycles(edges))
+    assert not found, "modules that import each other in a circle:\n" + found
+
+
+def test_no_cycles_between_units_of_one_rank():
+    edges: dict[str, set[str]] = {}
+    for imp in package_imports():
+        a, b = unit(imp.source), unit(imp.target)
+        if a != b and not imp.type_only:
+            edges.setdefault(a, set()).add(b)
+    found = "\n".join(" <-> ".join(c) for c in cycles(edges))
+    assert not found, "units that import each other in a circle:\n" + found
+
+
+def test_inference_never_imports_training_code():
+    def is_training(module: str) -> bool:
+        return any(module == t or module.startswith(t + ".") for t in TRAINING)
+
+    wrong = [
+        str(imp)
+        for imp in package_imports()
+        if is_training(imp.target) and not is_training(imp.source) and unit(imp.source) not in TRAINING_USERS
+    ]
+    assert not wrong, "training code imported outside learn/ and cli/:\n" + "\n".join(wrong)
+
+
+def test_the_library_never_imports_the_command_line_packages():
+    wrong = [
+        f"{module} (line {line}) imports {name}"
+        for module, path in modules().items()
+        if unit(module) != "cli"
+        for name, line, _ in imported_names(path)
+        if name.split(".")[0] in CLI_PACKAGES
+    ]
+    assert not wrong, "the library imports command-line packages:\n" + "\n".join(wrong)
+
+
+def test_the_walk_sees_lazy_and_type_only_imports():
+    """The checks above are only as good as the walk: it finds imports inside functions (the learned
+    sampler is built lazily by make_sampler) and marks those under TYPE_CHECKING."""
+    found = {(imp.source, imp.target): imp for imp in package_imports()}
+    lazy = found[("cuboidcli.sampling", "cuboidcli.sampling.learned")]
+    assert not lazy.type_only
+    assert found[("cuboidcli.evaluation.outputs", "cuboidcli.evaluation.runner")].type_only
+    assert ("cuboidcli.fitting.pipeline", "cuboidcli.sampling") in found
+    assert ("cuboidcli.io.result", "cuboidcli") in found  # from cuboidcli import __version__
+
+
+def test_readme_shows_the_layers():
+    """README.md's "Package layout" table lists the units of LAYERS at their ranks."""
+    readme = (PACKAGE.parent / "README.md").read_text()
+    section = readme.split("## Package layout", 1)[1].split("\n## ", 1)[0]
+    shown = {}
+    for row in section.splitlines():
+        cells = [c.strip() for c in row.strip().strip("|").split("|")]
+        if len(cells) == 3 and cells[0].isdigit():
+            for name in cells[1].split(","):
+                shown[name.strip().strip("`").removesuffix("/").removesuffix(".py")] = int(cells[0])
+    assert shown == {u: r for u, r in RANK.items() if u != "cuboidcli"}
