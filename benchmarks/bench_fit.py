@@ -58,7 +58,7 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--local-fraction", type=float, default=None, help="share of localised minimal sets")
     ap.add_argument("--max-batches", type=int, default=None, help="adaptive termination: batches per step")
-    ap.add_argument("--align", default="free", help="free | gravity | manhattan")
+    ap.add_argument("--align", default=None, help="free | gravity | manhattan (default: the library's)")
     args = ap.parse_args()
 
     import torch
@@ -80,9 +80,8 @@ def main() -> None:
         seed=args.seed,
         refine=not args.no_refine,
         prescore_points=600 if args.fast else 0,
-        align=args.align,
     )
-    overrides = {"local_fraction": args.local_fraction, "max_batches": args.max_batches}
+    overrides = {"local_fraction": args.local_fraction, "max_batches": args.max_batches, "align": args.align}
     cfg = replace(cfg, **{k: v for k, v in overrides.items() if v is not None})
     if (
         args.weights is not None

@@ -251,37 +251,36 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
         return c, a, R, values, gain, "free"
     p = pts[inl].double().cpu().numpy()
     r0 = R[0].double().cpu().numpy()
-    candidates = [("gravity", upright_rotation(r0, alignment.up))]
-    if alignment.mode == "manhattan" and alignment.axes is not None:
-        candidates.append(("manhattan", manhattan_rotation(r0, alignment.axes)))
-    results = []
     c0, a0 = c[0].double().cpu().numpy(), a[0].double().cpu().numpy()
-    for kind, rot in candidates:
+
+    def candidate(kind: str, rot: np.ndarray):
         cn, an = _refit_box(p, c0, a0, rot, config.a_min)
         c2, a2, R2 = (torch.from_numpy(x)[None].to(c.dtype) for x in (cn, an, rot))
         v2 = values_one(pts, c2, a2, R2, sp)
         g2 = gain_of(v2, state)
         if g2 <= 0.0:  # nothing to grow from
-            results.append((kind, c2, a2, R2, v2, g2))
-            continue
+            return kind, c2, a2, R2, v2, g2
         c3, a3, v3, g3 = grow_cuboid(pts, c2, a2, R2, state, g2, sp, config)
-        results.append((kind, c3, a3, R2, v3, g3))
-    kind, c2, a2, R2, v2, g2 = results[-1]
-    free_yaw_wins = results[0][5] > g2 + MANHATTAN_SLACK * abs(g2)
-    if kind == "manhattan" and thin_axis(a2[0].cpu().numpy()) < 0 and free_yaw_wins:
-        kind, c2, a2, R2, v2, g2 = results[0]
-    if g2 < ALIGN_KEEP * gain and kind == "manhattan":  # off the room's axes, maybe still upright
-        kind, c2, a2, R2, v2, g2 = results[0]
+        return kind, c3, a3, R2, v3, g3
+
+    if alignment.mode == "manhattan" and alignment.axes is not None:
+        best = candidate("manhattan", manhattan_rotation(r0, alignment.axes))
+        slab = thin_axis(best[2][0].cpu().numpy()) >= 0
+        if not (slab and best[5] >= ALIGN_KEEP * gain):  # a slab on the room's axes needs no other
+            upright = candidate("gravity", upright_rotation(r0, alignment.up))
+            free_yaw_wins = upright[5] > best[5] + MANHATTAN_SLACK * abs(best[5])
+            if (not slab and free_yaw_wins) or best[5] < ALIGN_KEEP * gain:
+                best = upright  # off the room's axes, maybe still upright
+    else:
+        best = candidate("gravity", upright_rotation(r0, alignment.up))
+    kind, c2, a2, R2, v2, g2 = best
     if g2 >= ALIGN_KEEP * gain:
         return c2, a2, R2, v2, g2, kind
     rot = edge_to_vertical(r0, thin_axis(a0), alignment)
     if rot is not None:
-        cn, an = _refit_box(p, c0, a0, rot, config.a_min)
-        c2, a2, R2 = (torch.from_numpy(x)[None].to(c.dtype) for x in (cn, an, rot))
-        v2 = values_one(pts, c2, a2, R2, sp)
-        c2, a2, v2, g2 = grow_cuboid(pts, c2, a2, R2, state, gain_of(v2, state), sp, config)
+        kind, c2, a2, R2, v2, g2 = candidate("tilted", rot)
         if g2 >= ALIGN_KEEP * gain:
-            return c2, a2, R2, v2, g2, "tilted"
+            return c2, a2, R2, v2, g2, kind
     return c, a, R, values, gain, "free"
 
 
