@@ -151,6 +151,9 @@ def ensure_compiled() -> None:
     init = np.zeros((1, 9))
     init[0, 6:] = 0.1
     adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy())
+    from cuboidcli.fitting.refine import refine_cuboid_fused
+
+    refine_cuboid_fused(np.array([[0.0, 0.0, 2.0]] * 6), c[0], a[0], R[0], 1e-3, 2.0, iters=1)
     from cuboidcli.sampling.proposals import ball_minimal_sets
 
     ball_minimal_sets(
