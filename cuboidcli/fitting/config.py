@@ -67,6 +67,9 @@ class FitConfig:
     any yaw) | manhattan (the room's axes, or a free yaw where that fits better; the default: real frames
     AUC@20 73.3 % against 72.4 % free, synthetic test split 93.5 % both). gravity and manhattan need an up
     direction: ``gravity_down`` or one estimated from the depth map (else the fit stays free)."""
+    upright_fraction: float = 0.5
+    """With ``align`` gravity or manhattan: the share of each batch's minimal sets solved as upright,
+    yaw-only boxes (manhattan: half of them on the room's axes, no rotation at all); the rest are free."""
     gravity_down: tuple[float, float, float] | None = None
     """Down direction in camera coordinates given by the user (an IMU, ARKit); None = estimate it from the
     depth map when ``align`` needs it."""

@@ -30,7 +30,7 @@ from cuboidcli.sampling import (
     local_fraction_of,
     make_sampler,
 )
-from cuboidcli.solvers.base import CuboidSolver, SizeBounds
+from cuboidcli.solvers.base import CuboidSolver, SizeBounds, solve_upright
 
 INVALID = -3
 
@@ -151,6 +151,7 @@ def ensure_compiled() -> None:
     init = np.zeros((1, 9))
     init[0, 6:] = 0.1
     adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy())
+    adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy(), 1)  # upright boxes
     from cuboidcli.fitting.refine import refine_cuboid_fused
 
     refine_cuboid_fused(np.array([[0.0, 0.0, 2.0]] * 6), c[0], a[0], R[0], 1e-3, 2.0, iters=1)
@@ -218,7 +219,7 @@ def fit_points(
             info.batches.append(0)
             break
         gain, best_hyp, batches = _search_step(
-            ctx, sampler, solver, state, sp, config, gen, info.theta, timing
+            ctx, sampler, solver, state, sp, config, gen, info.theta, timing, alignment
         )
         info.batches.append(batches)
         t4 = time.perf_counter()
@@ -255,7 +256,27 @@ def fit_points(
     return cuboids, info
 
 
-def _search_step(ctx, sampler, solver, state, sp: ScoreParams, config: FitConfig, gen, theta, timing):
+def _solve(solver, sets: torch.Tensor, config: FitConfig, alignment: Alignment | None):
+    """Boxes for the minimal sets (H, C, 3): free, or under an alignment ``config.upright_fraction`` of
+    them upright (yaw-only; with "manhattan" half of those on the room's axes), the rest free."""
+    n_up = 0 if alignment is None else int(round(config.upright_fraction * sets.shape[0]))
+    if n_up == 0:
+        return solver(sets)
+    frame = torch.from_numpy(alignment.frame())
+    n_free = sets.shape[0] - n_up
+    parts = [solver(sets[:n_free])] if n_free else []
+    if alignment.axes is not None:
+        n_fixed = n_up // 2
+        parts.append(solve_upright(solver, sets[n_free : n_free + n_fixed], frame, fixed=True))
+        parts.append(solve_upright(solver, sets[n_free + n_fixed :], frame))
+    else:
+        parts.append(solve_upright(solver, sets[n_free:], frame))
+    return tuple(torch.cat([p[k] for p in parts if p[k].shape[0]]) for k in range(3))
+
+
+def _search_step(
+    ctx, sampler, solver, state, sp: ScoreParams, config: FitConfig, gen, theta, timing, alignment=None
+):
     """The best hypothesis of one step: batches of |H| minimal sets are drawn, solved and scored until the
     best gains Theta, the miss probability falls below 1 - confidence, or ``config.max_batches`` is
     reached. Returns (gain, (centers, half_sizes, rotations) of the best as (1, ...) tensors, batches)."""
@@ -275,7 +296,7 @@ def _search_step(ctx, sampler, solver, state, sp: ScoreParams, config: FitConfig
         idx = idx.to(pts.device)
         t2 = time.perf_counter()
         timing["sample"] += t2 - t
-        centers, half, rot = solver(pts[idx])
+        centers, half, rot = _solve(solver, pts[idx], config, alignment)
         t3 = time.perf_counter()
         timing["solve"] += t3 - t2
         b, g, _ = select_best(

@@ -49,6 +49,19 @@ class Alignment:
     axes: np.ndarray | None = None
     """(3, 3) the room's axes (columns: up, two horizontal), for "manhattan"; None = gravity only."""
 
+    def frame(self) -> np.ndarray:
+        """(3, 3) world axes as columns in camera coordinates, the third one up: the room's horizontal axes
+        when known, else two horizontal directions (the first from the camera's x axis)."""
+        up = self.up / np.linalg.norm(self.up)
+        if self.axes is not None:
+            h1 = self.axes[:, 1]
+        else:
+            x = np.array([1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
+            h1 = x - (x @ up) * up
+        h1 = h1 - (h1 @ up) * up
+        h1 = h1 / np.linalg.norm(h1)
+        return np.stack([h1, np.cross(up, h1), up], 1)
+
 
 def refine_winner(
     pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator

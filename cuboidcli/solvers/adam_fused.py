@@ -197,8 +197,11 @@ def _adam_update(p, m, v, grad, lr, c1, c2, a_min, a_max):
 
 
 @njit(parallel=True, cache=True)
-def adam_solve(pts, init, a_min, a_max, lr, iters, out):
-    """pts (H, C, 3) float64; init (H, 9) = (centre, axis-angle, half-sizes); best iterates go to out."""
+def adam_solve(pts, init, a_min, a_max, lr, iters, out, rot_dof=3):
+    """pts (H, C, 3) float64; init (H, 9) = (centre, axis-angle, half-sizes); best iterates go to out.
+
+    ``rot_dof``: 3 = free rotation; 1 = about z only (the axis-angle's x and y stay as given: a yaw when
+    they are 0 and z is up); 0 = the rotation stays as given."""
     b1, b2 = 0.9, 0.999  # Adam betas, as in _adam_update
     for h in prange(pts.shape[0]):
         p = init[h].copy()
@@ -223,6 +226,8 @@ def adam_solve(pts, init, a_min, a_max, lr, iters, out):
             p2 *= b2
             c1 = 1.0 - p1
             c2 = 1.0 - p2
+            for j in range(3, 6 - rot_dof):
+                grad[j] = 0.0
             _adam_update(p, m, v, grad, lr, c1, c2, a_min, a_max)
 
 

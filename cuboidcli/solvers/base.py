@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+import torch
 from torch import Tensor
 
 
@@ -28,3 +29,44 @@ class CuboidSolver(Protocol):
     bounds: SizeBounds
 
     def __call__(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]: ...
+
+
+def solve_upright(
+    solver: CuboidSolver, minimal_sets: Tensor, frame: Tensor, fixed: bool = False
+) -> tuple[Tensor, Tensor, Tensor]:
+    """Upright boxes for minimal sets (H, C, 3) in camera coordinates: one axis along the up direction,
+    the box turning about it only (``fixed``: not at all; the frame's horizontal axes are the room's).
+
+    ``frame`` (3, 3) has the world axes as columns in camera coordinates, its third column up. A solver
+    with a ``solve_upright`` method (the numerical one) fits yaw-only boxes in that frame; any other fits a
+    free box there, which is then turned upright (:func:`upright_nearest`). Returns camera-frame
+    (centers, half_sizes, rotations) like ``solver(minimal_sets)``."""
+    g = frame.to(minimal_sets)
+    world = minimal_sets @ g
+    if hasattr(solver, "solve_upright"):
+        c, a, r = solver.solve_upright(world, fixed)
+    else:
+        c, a, r = solver(world)
+        r = upright_nearest(r)
+    return c @ g.T, a, g @ r
+
+
+def upright_nearest(rotations: Tensor) -> Tensor:
+    """The upright rotations (H, 3, 3) nearest to ``rotations`` in a frame whose z axis is up: the column
+    closest to vertical becomes z, the next one (cyclically) keeps its heading in the horizontal plane."""
+    h = torch.arange(rotations.shape[0], device=rotations.device)
+    k = rotations[:, 2, :].abs().argmax(1)
+    i, j = (k + 1) % 3, (k + 2) % 3
+    up = torch.zeros_like(rotations[:, :, 0])
+    up[:, 2] = 1.0
+    u = rotations[h, :, i].clone()
+    u[:, 2] = 0.0
+    alt = rotations[h, :, j].clone()  # when column i is vertical too (degenerate), column j's heading
+    alt = torch.stack([alt[:, 1], -alt[:, 0], torch.zeros_like(alt[:, 0])], -1)
+    n = u.norm(dim=1, keepdim=True)
+    u = torch.where(n > 1e-6, u / n.clamp_min(1e-12), alt / alt.norm(dim=1, keepdim=True).clamp_min(1e-12))
+    out = torch.zeros_like(rotations)
+    out[h, :, k] = up
+    out[h, :, i] = u
+    out[h, :, j] = torch.linalg.cross(up, u)
+    return out

@@ -39,6 +39,28 @@ def pca_init(points: Tensor, bounds: SizeBounds) -> tuple[Tensor, Tensor, Tensor
     return center, half, v
 
 
+def upright_init(points: Tensor, bounds: SizeBounds, fixed: bool) -> tuple[Tensor, Tensor, Tensor]:
+    """Initial upright cuboid of each minimal set (H, C, 3) given in a frame whose z axis is up: the
+    bounding box in the frame turned about z by the principal direction of the points' horizontal
+    coordinates (2D PCA), or not turned at all when ``fixed`` (the frame's axes are the room's).
+    Returns (centers (H, 3), half-sizes (H, 3), yaw angles (H,))."""
+    mean = points.mean(1)
+    centred = points - mean[:, None]
+    if fixed:
+        yaw = torch.zeros(points.shape[0], dtype=points.dtype, device=points.device)
+    else:
+        x, y = centred[..., 0], centred[..., 1]
+        yaw = 0.5 * torch.atan2(2.0 * (x * y).sum(1), (x * x).sum(1) - (y * y).sum(1))
+    cos, sin = torch.cos(yaw), torch.sin(yaw)
+    zero, one = torch.zeros_like(yaw), torch.ones_like(yaw)
+    rot = torch.stack([cos, -sin, zero, sin, cos, zero, zero, zero, one], -1).reshape(-1, 3, 3)
+    local = centred @ rot
+    lo, hi = local.amin(1), local.amax(1)
+    center = mean + (rot @ (0.5 * (lo + hi))[..., None])[..., 0]
+    half = (0.5 * (hi - lo)).clamp(bounds.a_min, bounds.a_max)
+    return center, half, yaw
+
+
 @dataclass
 class NumericalSolver:
     """PCA + Adam solver. ``lr`` and ``iters`` are the paper's 0.01 and 50 (NYU)."""
@@ -62,6 +84,36 @@ class NumericalSolver:
         if use_fused:
             return self._solve_fused(minimal_sets)
         return self._solve_torch(minimal_sets)
+
+    def solve_upright(self, minimal_sets: Tensor, fixed: bool = False) -> tuple[Tensor, Tensor, Tensor]:
+        """Yaw-only boxes: ``minimal_sets`` (H, C, 3) in a frame whose z axis is up; every box turns about z
+        only (``fixed``: not at all, the frame's axes are the room's). Same returns as ``__call__``, in that
+        frame. One rotation parameter (or none) instead of three: the same Adam steps fit the rest."""
+        pts = minimal_sets.detach()
+        with torch.no_grad():
+            c0, a0, yaw = upright_init(pts.double(), self.bounds, fixed)
+            r0 = torch.zeros_like(c0)
+            r0[:, 2] = yaw
+        rot_dof = 0 if fixed else 1
+        use_fused = self.backend == "fused" or (self.backend == "auto" and pts.device.type == "cpu")
+        if use_fused:
+            from cuboidcli.solvers.adam_fused import adam_solve
+
+            init = torch.cat([c0, r0, a0], -1).contiguous().numpy()
+            out = init.copy()
+            adam_solve(
+                pts.double().contiguous().numpy(),
+                init,
+                self.bounds.a_min,
+                self.bounds.a_max,
+                self.lr,
+                self.iters,
+                out,
+                rot_dof,
+            )
+            best = torch.from_numpy(out).to(pts.dtype)
+            return best[:, :3].contiguous(), best[:, 6:].contiguous(), axis_angle_to_matrix(best[:, 3:6])
+        return self._adam_torch(pts, c0.to(pts.dtype), r0.to(pts.dtype), a0.to(pts.dtype), rot_dof)
 
     def _solve_fused(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         from cuboidcli.solvers.adam_fused import adam_solve
@@ -88,6 +140,11 @@ class NumericalSolver:
         with torch.no_grad():
             c0, a0, R0 = pca_init(pts, self.bounds)
             r0 = matrix_to_axis_angle(R0)
+        return self._adam_torch(pts, c0, r0, a0, 3)
+
+    def _adam_torch(self, pts: Tensor, c0: Tensor, r0: Tensor, a0: Tensor, rot_dof: int):
+        """Adam from (c0, axis-angle r0, a0), keeping the best iterate per hypothesis; ``rot_dof`` as in
+        :func:`~cuboidcli.solvers.adam_fused.adam_solve`."""
         center = c0.clone().requires_grad_(True)
         rvec = r0.clone().requires_grad_(True)
         half = a0.clone().requires_grad_(True)
@@ -106,6 +163,7 @@ class NumericalSolver:
                     break
                 opt.zero_grad(set_to_none=True)
                 loss.sum().backward()
+                rvec.grad[:, : 3 - rot_dof] = 0.0
                 opt.step()
                 with torch.no_grad():
                     half.clamp_(self.bounds.a_min, self.bounds.a_max)
