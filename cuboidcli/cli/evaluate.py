@@ -250,7 +250,10 @@ def evaluate(
         False, "--rgb", help="Fit to depth estimated from each RGB image; score against the true depth."
     ),
     depth_model: Path = typer.Option(
-        None, "--depth-model", help="With --rgb: depth net .pt (built-in) or metric .onnx [default: shipped]."
+        None,
+        "--depth-model",
+        help="With --rgb: depth net .pt (built-in) or metric .onnx.",
+        show_default="shipped",
     ),
     align: str = override_option("align", of=PRESET),
     seed: int = config_option("seed", more="With --runs: the first run's."),

@@ -34,6 +34,7 @@ from cuboidcli.cli.scale_options import (
     workers_option,
 )
 from cuboidcli.folder import FolderJob, fitter_for
+from cuboidcli.weights import DEFAULTS as WEIGHTS
 
 SAMPLE_DIR = Path(__file__).resolve().parents[1] / "data" / "sample"
 DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
@@ -128,7 +129,7 @@ def fit(
         None, "--preset", help="Camera preset: nyu, tum or scannet (intrinsics + depth scale)."
     ),
     depth_scale: float = typer.Option(
-        None, "--depth-scale", help="Metres per depth-PNG unit [default: 0.001]."
+        None, "--depth-scale", help="Metres per depth-PNG unit.", show_default="0.001"
     ),
     output: Path = typer.Option(
         None, "--output", "-o", help="Output JSON (or folder for a folder of depth maps)."
@@ -138,7 +139,7 @@ def fit(
     sampler: str = config_option("sampler"),
     solver: str = config_option("solver"),
     weights: Path = typer.Option(
-        None, "--weights", help="Folder with network weights [default: shipped models/]."
+        None, "--weights", help="Folder with network weights.", show_default="shipped models/"
     ),
     onnx: Path = typer.Option(None, "--onnx", help="ONNX solver file for --solver onnx."),
     seed: int = config_option("seed"),
@@ -165,8 +166,8 @@ def fit(
     depth_model: str = typer.Option(
         None,
         "--depth-model",
-        help="Without --depth: a user's monocular depth "
-        "model (.onnx) or a built-in checkpoint (.pt) [default: models/depth_v3.pt].",
+        help="Without --depth: a user's monocular depth model (.onnx) or a built-in checkpoint (.pt).",
+        show_default=f"models/{WEIGHTS['depth']}",
     ),
     depth_model_kind: str = typer.Option(
         "metric", "--depth-model-kind", help="metric | relative | relative-inverse (ONNX models)."
