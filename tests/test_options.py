@@ -4,6 +4,8 @@ from the field (cuboidcli/cli/options.py), and `cuboids fit` and the Python API 
 from __future__ import annotations
 
 import dataclasses
+import runpy
+from pathlib import Path
 
 import click
 import pytest
@@ -23,6 +25,7 @@ from cuboidcli.cli.options import (
 from cuboidcli.evaluation.presets import resolve
 from cuboidcli.fitting.config import FitConfig
 
+ROOT = Path(__file__).resolve().parents[1]
 DEFAULTS = FitConfig()
 FIELDS = {f.name for f in dataclasses.fields(FitConfig)}
 
@@ -192,3 +195,14 @@ def test_no_help_text_is_lost_to_rich_markup():
                 assert Text.from_markup(p.help).plain == p.help.replace("\\[", "["), (path, p.name)
                 seen += 1
     assert seen > 60
+
+
+def test_readme_option_table_is_written_from_the_command():
+    """README.md's table of the main options of cuboids fit is what scripts/readme_options.py writes from
+    the command (for the FitConfig options: the fields' defaults and docs)."""
+    script = runpy.run_path(str(ROOT / "scripts" / "readme_options.py"))
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert script["with_table"](readme) == readme, "out of date: python scripts/readme_options.py"
+    table = script["table"]()
+    assert "| `--align` | manhattan | Orientation of the selected cuboids: `manhattan` (walls" in table
+    assert "| `--theta` | 6 ln n | Theta: " in table and "| `--oai/--no-oai` | `--oai` | " in table

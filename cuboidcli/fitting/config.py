@@ -2,7 +2,8 @@
 
 Each field's docstring is its documentation everywhere: the first paragraph is also the help text of the
 command-line option that sets the field (``cuboids fit --help``, cuboidcli/cli/options.py), and the field's
-default is the option's; later paragraphs give the details.
+default is the option's (README.md's option table too: ``python scripts/readme_options.py`` rewrites it);
+later paragraphs give the details.
 """
 
 from __future__ import annotations
