@@ -120,25 +120,18 @@ def test_reading_helpers(tmp_path, room_png):
         cb.read_camera()
 
 
-def _cli_default(param) -> object:
-    return param.default.default if hasattr(param.default, "default") else param.default
-
-
 def test_library_defaults_are_the_cli_defaults():
-    """`cuboids fit` without options and `cb.fit` without settings fit with the same configuration."""
+    """`cuboids fit` without options and `cb.Fitter` / `cb.fit` without settings fit with the same
+    configuration (tests/test_options.py holds each option to its FitConfig field)."""
     from cuboidcli.cli.fit import fit as fit_command
+    from cuboidcli.cli.options import fit_config, option_defaults
 
-    cli = {name: _cli_default(p) for name, p in inspect.signature(fit_command).parameters.items()}
-    defaults = FitConfig()
-    fitter_device = inspect.signature(cb.Fitter).parameters["device"].default
-    assert fitter_device == cli["device"] == "auto"
-    for name in ("hypotheses", "max_cuboids", "sampler", "solver", "seed", "theta", "grid_step", "refine"):
-        assert cli[name] == getattr(defaults, name), name
-    # Options without a CLI default take the config's; flags that are off keep the config's behaviour.
-    assert cli["local_fraction"] is None and cli["max_batches"] is None
-    assert cli["no_oai"] is False and defaults.occlusion_aware
-    assert cli["fast"] is False and defaults.prescore_points == 0
+    cli = option_defaults(fit_command)
+    assert cli["device"] == "auto"
+    assert inspect.signature(cb.Fitter).parameters["device"].default == "auto"
     assert inspect.signature(cb.fit).parameters["device"].default == "auto"
+    assert fit_config({**cli, "device": "cpu"}) == cb.Fitter(device="cpu").config
+    defaults = FitConfig()
     assert defaults.sampler == "sequential" and defaults.hypotheses == 3072
 
 

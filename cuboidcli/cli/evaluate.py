@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import typer
@@ -12,7 +11,9 @@ from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
 from rich.table import Table
 
-from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
+from cuboidcli.api import SAMPLERS, SOLVERS
+from cuboidcli.cli.common import console, fail, out, user_errors
+from cuboidcli.cli.options import config_option, device_option, fast_option, fit_config, override_option
 from cuboidcli.cli.scale_options import (
     ray_address_option,
     ray_option,
@@ -21,6 +22,12 @@ from cuboidcli.cli.scale_options import (
     workers_option,
 )
 from cuboidcli.weights import shipped_path
+
+#: The samplers and solvers an evaluation runs: no ``local`` (sequential with every set localised), no
+#: ``onnx`` (there is no --onnx file to give).
+EVAL_SAMPLERS = tuple(s for s in SAMPLERS if s != "local")
+EVAL_SOLVERS = tuple(s for s in SOLVERS if s != "onnx")
+PRESET = "the preset's"
 
 #: Table columns in the paper's order (Table 1): (aggregate key, header, decimals).
 COLUMNS = (
@@ -42,63 +49,18 @@ def _parse_list(text: str, what: str, cast=float) -> list:
     return values
 
 
-def _config(
-    preset,
-    sampler,
-    solver,
-    hypotheses,
-    max_cuboids,
-    grid_step,
-    no_oai,
-    refine,
-    fast,
-    auc,
-    seed,
-    device,
-    align=None,
-):
-    from cuboidcli.evaluation.presets import PRESETS, resolve
-    from cuboidcli.fitting.config import ALIGN_MODES
+def _config(preset: str | None, auc: str | None, options: dict):
+    """The presets' FitConfig with the given options set over it, the AUC thresholds (cm) and the presets
+    applied."""
+    from cuboidcli.evaluation.presets import resolve
 
     config, auc_cm, applied = resolve(preset)
-    overrides = {"seed": seed, "device": resolve_device(device)}
-    if not any("sampler" in PRESETS[name].fit for name in applied):
-        overrides["sampler"] = "sequential"  # the tool's default, as for cuboids fit
-    if sampler is not None:
-        if sampler not in ("uniform", "sequential", "learned"):
-            fail(f"--sampler {sampler!r}: choose uniform, sequential or learned")
-        overrides["sampler"] = sampler
-    if solver is not None:
-        if solver not in ("numerical", "neural"):
-            fail(f"--solver {solver!r}: choose numerical or neural")
-        overrides["solver"] = solver
-    if hypotheses is not None:
-        if hypotheses < 1:
-            fail(f"--hypotheses must be at least 1 (got {hypotheses})")
-        overrides["hypotheses"] = hypotheses
-    if max_cuboids is not None:
-        if max_cuboids < 1:
-            fail(f"--max-cuboids must be at least 1 (got {max_cuboids})")
-        overrides["max_cuboids"] = max_cuboids
-    if grid_step is not None:
-        if grid_step < 1:
-            fail(f"--grid-step must be at least 1 (got {grid_step})")
-        overrides["grid_step"] = grid_step
-    if no_oai:
-        overrides["occlusion_aware"] = False
-    if refine is not None:
-        overrides["refine"] = refine
-    if fast:
-        overrides["prescore_points"] = 600
-    if align is not None:
-        if align not in ALIGN_MODES:
-            fail(f"--align {align!r}: choose {', '.join(ALIGN_MODES)}")
-        overrides["align"] = align
+    config = fit_config(options, config, samplers=EVAL_SAMPLERS, solvers=EVAL_SOLVERS)
     if auc is not None:
         auc_cm = tuple(_parse_list(auc, "--auc"))
         if any(x <= 0 for x in auc_cm):
             fail(f"--auc {auc!r}: thresholds must be positive (cm)")
-    return replace(config, **overrides), auc_cm, applied
+    return config, auc_cm, applied
 
 
 def _fmt(mean: float, std: float, decimals: int, runs: int) -> str:
@@ -262,22 +224,14 @@ def evaluate(
         help="Baseline/variant: default, ours, ours-neural, seqransac-oai, seqransac, uniform, "
         "paper, outdoor; combine with commas (seqransac,outdoor).",
     ),
-    sampler: str = typer.Option(
-        None, "--sampler", help="uniform | sequential | learned [default: sequential]."
-    ),
-    solver: str = typer.Option(None, "--solver", help="numerical | neural (default: preset)."),
-    hypotheses: int = typer.Option(
-        None, "--hypotheses", help="Hypotheses per step |H| (default: 3072; the paper: 4096)."
-    ),
-    max_cuboids: int = typer.Option(None, "--max-cuboids", help="At most this many cuboids (default: 8)."),
-    grid_step: int = typer.Option(
-        None, "--grid-step", help="Fit on every n-th pixel (default: 8, i.e. 60x80 at 480x640)."
-    ),
-    no_oai: bool = typer.Option(False, "--no-oai", help="Plain inlier counting (the no-OAI baselines)."),
-    refine: bool = typer.Option(
-        None, "--refine/--no-refine", help="Winner refinement (default: preset; the paper's presets: off)."
-    ),
-    fast: bool = typer.Option(False, "--fast", help="Approximate scoring (rank hypotheses on 600 points)."),
+    sampler: str = override_option("sampler", of=PRESET, more=f"Here: {', '.join(EVAL_SAMPLERS)}."),
+    solver: str = override_option("solver", of=PRESET, more=f"Here: {', '.join(EVAL_SOLVERS)}."),
+    hypotheses: int = override_option("hypotheses", of=PRESET),
+    max_cuboids: int = override_option("max_cuboids", of=PRESET),
+    grid_step: int = override_option("grid_step", of=PRESET),
+    occlusion_aware: bool = override_option("occlusion_aware", of=PRESET),
+    refine: bool = override_option("refine", of=PRESET),
+    fast: bool = fast_option(),
     auc: str = typer.Option(None, "--auc", help="AUC upper bounds in cm (default: 20,5; outdoor 50,10)."),
     output: Path = typer.Option(None, "--output", "-o", help="Write metrics.json and frames.csv here."),
     save_fits: bool = typer.Option(
@@ -296,16 +250,14 @@ def evaluate(
         False, "--rgb", help="Fit to depth estimated from each RGB image; score against the true depth."
     ),
     depth_model: Path = typer.Option(
-        None, "--depth-model", help="With --rgb: depth net .pt (built-in) or metric .onnx [default: shipped]."
-    ),
-    align: str = typer.Option(
         None,
-        "--align",
-        help="free (any rotation) | gravity (upright boxes, free yaw) | manhattan (the room's axes) "
-        "[default: free]. Gravity is estimated from each depth map.",
+        "--depth-model",
+        help="With --rgb: depth net .pt (built-in) or metric .onnx.",
+        show_default="shipped",
     ),
-    seed: int = typer.Option(0, "--seed", help="Seed of the first run."),
-    device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
+    align: str = override_option("align", of=PRESET),
+    seed: int = config_option("seed", more="With --runs: the first run's."),
+    device: str = device_option(),
 ) -> None:
     """Fit every frame and report the paper's metrics: time, |M|, coverage, OA-L2 distances, AUC.
 
@@ -313,6 +265,7 @@ def evaluate(
     gravity and the room's axes, the support of their visible faces, and, where the dataset has them,
     object recall and precision (instance images) and the gravity error (known gravity) (docs/evaluate.md).
     """
+    options = dict(locals())  # the parameters named after FitConfig fields set them over the presets'
     from cuboidcli.evaluation.outputs import write_outputs
     from cuboidcli.evaluation.runner import EvalSettings, load_frames
     from cuboidcli.evaluation.runner import evaluate as run
@@ -340,21 +293,7 @@ def evaluate(
         fail("--fits evaluates saved cuboids: drop --rgb")
     names = _parse_list(frames, "--frames", str) if frames is not None else None
     with user_errors():
-        config, auc_cm, applied = _config(
-            preset,
-            sampler,
-            solver,
-            hypotheses,
-            max_cuboids,
-            grid_step,
-            no_oai,
-            refine,
-            fast,
-            auc,
-            seed,
-            device,
-            align,
-        )
+        config, auc_cm, applied = _config(preset, auc, options)
         frame_list, dataset = load_frames(data, split, names, limit)
         settings = EvalSettings(
             auc_cm=auc_cm,

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +17,15 @@ from rich.progress import (
 from rich.table import Table
 
 from cuboidcli.api import Fitter
-from cuboidcli.cli.common import console, fail, out, resolve_device, user_errors
+from cuboidcli.cli.common import console, fail, out, user_errors
+from cuboidcli.cli.options import (
+    DEFAULTS,
+    call_with_defaults,
+    config_option,
+    device_option,
+    fast_option,
+    fit_config,
+)
 from cuboidcli.cli.scale_options import (
     ray_address_option,
     ray_option,
@@ -27,6 +34,7 @@ from cuboidcli.cli.scale_options import (
     workers_option,
 )
 from cuboidcli.folder import FolderJob, fitter_for
+from cuboidcli.weights import DEFAULTS as WEIGHTS
 
 SAMPLE_DIR = Path(__file__).resolve().parents[1] / "data" / "sample"
 DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
@@ -89,84 +97,6 @@ def _str_or_none(p) -> str | None:
     return None if p is None else str(p)
 
 
-def _config(
-    hypotheses,
-    max_cuboids,
-    sampler,
-    solver,
-    seed,
-    device,
-    theta,
-    grid_step,
-    no_oai,
-    fast,
-    refine=True,
-    local_fraction=None,
-    max_batches=None,
-    align=None,
-    gravity=None,
-    slab_max=None,
-):
-    from cuboidcli.fitting.config import ALIGN_MODES, FitConfig
-
-    defaults = FitConfig()
-    if local_fraction is not None and not 0.0 <= local_fraction <= 1.0:
-        fail(f"--local-fraction must be between 0 and 1 (got {local_fraction})")
-    if max_batches is not None and max_batches < 1:
-        fail(f"--max-batches must be at least 1 (got {max_batches})")
-    if align is not None and align not in ALIGN_MODES:
-        fail(f"--align {align!r}: choose {', '.join(ALIGN_MODES)}")
-    gravity_down = None if gravity is None else parse_gravity(gravity)
-    if slab_max is not None and slab_max <= 0:
-        fail(f"--slab-max must be positive metres (got {slab_max})")
-    if hypotheses < 1:
-        fail(f"--hypotheses must be at least 1 (got {hypotheses})")
-    if max_cuboids < 1:
-        fail(f"--max-cuboids must be at least 1 (got {max_cuboids})")
-    if grid_step < 1:
-        fail(f"--grid-step must be at least 1 (got {grid_step})")
-    if sampler not in ("uniform", "sequential", "local", "learned"):
-        fail(f"--sampler {sampler!r}: choose sequential, local, uniform or learned")
-    if solver not in ("numerical", "neural", "onnx"):
-        fail(f"--solver {solver!r}: choose numerical, neural or onnx")
-    return FitConfig(
-        hypotheses=hypotheses,
-        max_cuboids=max_cuboids,
-        sampler=sampler,
-        solver=solver,
-        seed=seed,
-        device=resolve_device(device),
-        theta=theta,
-        grid_step=grid_step,
-        occlusion_aware=not no_oai,
-        prescore_points=600 if fast else 0,
-        refine=refine,
-        local_fraction=defaults.local_fraction if local_fraction is None else local_fraction,
-        max_batches=defaults.max_batches if max_batches is None else max_batches,
-        align=defaults.align if align is None else align,
-        gravity_down=gravity_down,
-        slab_max_m=defaults.slab_max_m if slab_max is None else slab_max,
-    )
-
-
-def parse_gravity(text: str) -> tuple[float, float, float]:
-    """``--gravity gx,gy,gz`` (the down direction in camera coordinates; any length) or a sensor
-    convention: ``y-down`` (a level OpenCV camera: 0,1,0)."""
-    conventions = {"y-down": (0.0, 1.0, 0.0), "level": (0.0, 1.0, 0.0)}
-    if text.strip().lower() in conventions:
-        return conventions[text.strip().lower()]
-    try:
-        v = tuple(float(x) for x in text.split(","))
-    except ValueError:
-        v = ()
-    if len(v) != 3 or not all(math.isfinite(x) for x in v) or not any(v):
-        fail(
-            f"--gravity {text!r}: give the down direction in camera coordinates as gx,gy,gz "
-            "(e.g. 0,1,0 for a level camera; from an IMU or ARKit) or 'level'"
-        )
-    return v
-
-
 def cuboid_table(result) -> Table:
     table = Table(title=f"{len(result.cuboids)} cuboids", title_justify="left")
     for col in ("#", "centre x, y, z (m)", "size x, y, z (m)", "inlier gain"):
@@ -199,64 +129,35 @@ def fit(
         None, "--preset", help="Camera preset: nyu, tum or scannet (intrinsics + depth scale)."
     ),
     depth_scale: float = typer.Option(
-        None, "--depth-scale", help="Metres per depth-PNG unit [default: 0.001]."
+        None, "--depth-scale", help="Metres per depth-PNG unit.", show_default="0.001"
     ),
     output: Path = typer.Option(
         None, "--output", "-o", help="Output JSON (or folder for a folder of depth maps)."
     ),
-    hypotheses: int = typer.Option(
-        3072, "--hypotheses", help="Cuboid hypotheses per step |H| (the paper: 4096)."
-    ),
-    max_cuboids: int = typer.Option(8, "--max-cuboids", help="At most this many cuboids."),
-    sampler: str = typer.Option("sequential", "--sampler", help="sequential | learned | local | uniform."),
-    solver: str = typer.Option("numerical", "--solver", help="numerical | neural | onnx."),
+    hypotheses: int = config_option("hypotheses"),
+    max_cuboids: int = config_option("max_cuboids"),
+    sampler: str = config_option("sampler"),
+    solver: str = config_option("solver"),
     weights: Path = typer.Option(
-        None, "--weights", help="Folder with network weights [default: shipped models/]."
+        None, "--weights", help="Folder with network weights.", show_default="shipped models/"
     ),
     onnx: Path = typer.Option(None, "--onnx", help="ONNX solver file for --solver onnx."),
-    seed: int = typer.Option(0, "--seed", help="Random seed; the same seed gives the same cuboids."),
-    device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
-    theta: float = typer.Option(
-        None, "--theta", help="Minimum inlier gain per cuboid [default: 6 ln n; --preset paper: 9 ln n]."
+    seed: int = config_option("seed"),
+    device: str = device_option(),
+    theta: float = config_option("theta", show_default=f"{DEFAULTS.theta_log_factor:g} ln n"),
+    grid_step: int = config_option("grid_step"),
+    occlusion_aware: bool = config_option("occlusion_aware"),
+    fast: bool = fast_option(),
+    refine: bool = config_option("refine"),
+    local_fraction: float = config_option("local_fraction"),
+    max_batches: int = config_option("max_batches"),
+    align: str = config_option("align"),
+    gravity_down: str = config_option(
+        "gravity_down",
+        show_default="estimated",
+        more="Given as gx,gy,gz (any length) or 'level' (0,1,0); also levels the GLB.",
     ),
-    grid_step: int = typer.Option(8, "--grid-step", help="Fit on every n-th pixel (8 -> 60x80 at 480x640)."),
-    no_oai: bool = typer.Option(
-        False, "--no-oai", help="Plain inlier counting (the paper's no-OAI baselines)."
-    ),
-    fast: bool = typer.Option(
-        False, "--fast", help="Approximate scoring: rank hypotheses on 600 points first."
-    ),
-    refine: bool = typer.Option(
-        True, "--refine/--no-refine", help="Refine (and grow) each selected cuboid on its inliers."
-    ),
-    local_fraction: float = typer.Option(
-        None,
-        "--local-fraction",
-        help="Share of minimal sets drawn from a 3D ball around their first point [default: 0.75]; "
-        "0 = the paper's global sets.",
-    ),
-    max_batches: int = typer.Option(
-        None,
-        "--max-batches",
-        help="Most batches of hypotheses per step when the best misses Theta [default: 4]; 1 = the paper.",
-    ),
-    align: str = typer.Option(
-        None,
-        "--align",
-        help="free (any rotation) | gravity (upright boxes, free yaw) | manhattan (the room's axes) "
-        "[default: free]. Gravity is estimated from the depth map unless --gravity is given.",
-    ),
-    gravity: str = typer.Option(
-        None,
-        "--gravity",
-        help="Down direction in camera coordinates, gx,gy,gz (an IMU, ARKit), or 'level' (0,1,0). "
-        "Also levels the GLB.",
-    ),
-    slab_max: float = typer.Option(
-        None,
-        "--slab-max",
-        help="Largest half-length of a wall or floor slab, m [default: 4]; a_max (2) for other boxes.",
-    ),
+    slab_max_m: float = config_option("slab_max_m"),
     glb: bool = typer.Option(False, "--glb", help="Also write <out>.glb."),
     ply: bool = typer.Option(False, "--ply", help="Also write <out>_points.ply and <out>_cuboids.ply."),
     overlay: bool = typer.Option(False, "--overlay", help="Also write overlay, label and panel PNGs."),
@@ -265,8 +166,8 @@ def fit(
     depth_model: str = typer.Option(
         None,
         "--depth-model",
-        help="Without --depth: a user's monocular depth "
-        "model (.onnx) or a built-in checkpoint (.pt) [default: models/depth_v3.pt].",
+        help="Without --depth: a user's monocular depth model (.onnx) or a built-in checkpoint (.pt).",
+        show_default=f"models/{WEIGHTS['depth']}",
     ),
     depth_model_kind: str = typer.Option(
         "metric", "--depth-model-kind", help="metric | relative | relative-inverse (ONNX models)."
@@ -286,28 +187,12 @@ def fit(
     """Fit cuboids to a depth map (or every depth map in a folder) and write "cuboids/1" JSON.
 
     With only an RGB image, depth comes from a monocular depth network (the built-in one by default)."""
+    options = dict(locals())  # the parameters named after FitConfig fields are its settings
     if depth is None and image is None:
         fail("give a depth map with --depth D.png or an RGB image (see cuboids fit --help)")
     if depth_model_kind not in ("metric", "relative", "relative-inverse"):
         fail(f"--depth-model-kind {depth_model_kind!r}: choose metric, relative or relative-inverse")
-    config = _config(
-        hypotheses,
-        max_cuboids,
-        sampler,
-        solver,
-        seed,
-        device,
-        theta,
-        grid_step,
-        no_oai,
-        fast,
-        refine,
-        local_fraction,
-        max_batches,
-        align,
-        gravity,
-        slab_max,
-    )
+    config = fit_config(options)
     if solver == "onnx" and onnx is None:
         fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
     if image is not None and not image.exists():
@@ -498,52 +383,25 @@ def _is_colour_image(path: Path) -> bool:
 
 def demo(
     output: Path = typer.Option(Path("cuboids_demo"), "--output", "-o", help="Output folder."),
-    seed: int = typer.Option(0, "--seed"),
-    device: str = typer.Option("auto", "--device", help="auto | cpu | cuda."),
+    seed: int = config_option("seed"),
+    device: str = device_option(),
 ) -> None:
     """Fit the embedded sample scene (a synthetic room) and write JSON, GLB, PLY and overlay PNGs."""
     depth = SAMPLE_DIR / "sample_depth.png"
     if not depth.is_file():
         fail(f"the embedded sample is missing from {SAMPLE_DIR}; reinstall the package")
-    fit(
+    call_with_defaults(  # cuboids fit with these options; the others are fit's defaults
+        fit,
         image=SAMPLE_DIR / "sample.png",
         depth=depth,
         intrinsics=str(SAMPLE_DIR / "camera.json"),
-        preset=None,
-        depth_scale=None,
         output=output / "sample_cuboids.json",
-        hypotheses=3072,
-        max_cuboids=8,
-        sampler="sequential",
-        solver="numerical",
-        weights=None,
-        onnx=None,
         seed=seed,
         device=device,
-        theta=None,
-        grid_step=8,
-        no_oai=False,
-        fast=False,
-        refine=True,
-        local_fraction=None,
-        max_batches=None,
-        align=None,
-        gravity=None,
-        slab_max=None,
         glb=True,
         ply=True,
         overlay=True,
         with_points=True,
-        quiet=False,
-        depth_model=None,
-        depth_model_kind="metric",
-        relative_scale=None,
-        relative_shift=None,
-        partial_depth=None,
-        workers=1,
-        ray=False,
-        ray_address=None,
-        skip_existing=False,
     )
 
 

@@ -22,7 +22,7 @@ def ray_address_option():
         None,
         "--ray-address",
         help="Run frames as Ray tasks on this Ray cluster ('auto': the one this machine belongs to, "
-        "ray://HOST:10001); implies --ray. Needs: pip install 'cuboids[ray]'.",
+        "ray://HOST:10001); implies --ray. Needs: pip install 'cuboids\\[ray]'.",  # \\[: rich markup
     )
 
 

@@ -1,4 +1,10 @@
-"""Settings of the estimator, with the paper's symbols and units. Defaults are the paper's NYU values."""
+"""Settings of the estimator, with the paper's symbols and units. Defaults are the paper's NYU values.
+
+Each field's docstring is its documentation everywhere: the first paragraph is also the help text of the
+command-line option that sets the field (``cuboids fit --help``, cuboidcli/cli/options.py), and the field's
+default is the option's (README.md's option table too: ``python scripts/readme_options.py`` rewrites it);
+later paragraphs give the details.
+"""
 
 from __future__ import annotations
 
@@ -12,9 +18,11 @@ ALIGN_MODES = ("free", "gravity", "manhattan")
 @dataclass(frozen=True)
 class FitConfig:
     hypotheses: int = 3072
-    """|H|: cuboid hypotheses sampled per step. The paper tests with 4096 (``--preset paper`` and the
-    baselines use it); with localised minimal sets 3072 find the same cuboids (AUC@20 within 0.5 points on
-    real and synthetic frames) in two thirds of the time, so it is the default here. 32 in training."""
+    """|H|: cuboid hypotheses sampled per step (the paper: 4096, as ``cuboids evaluate --preset paper``).
+
+    The paper tests with 4096 (the ``paper`` preset and the baselines use it); with localised minimal sets
+    3072 find the same cuboids (AUC@20 within 0.5 points on real and synthetic frames) in two thirds of the
+    time, so it is the default here. 32 in training."""
     max_cuboids: int = 8
     """Upper bound on |M|, the number of cuboids returned."""
     min_set: int = 6
@@ -26,53 +34,75 @@ class FitConfig:
     tau_c_sq_m2: float | None = None
     """tau_c: where the occlusion penalty f_O turns linear, m^2; None = 2 * tau (the paper's test value)."""
     theta: float | None = None
-    """Theta: minimum inlier-count gain for a cuboid to be added; None = theta_log_factor * ln n."""
+    """Theta: minimum inlier-count gain for a cuboid to be added; by default k ln n (n fitting points,
+    k = ``theta_log_factor``; the paper's k is 9, as ``cuboids evaluate --preset paper``).
+
+    None = ``theta_log_factor`` * ln n."""
     theta_log_factor: float = 6.0
     """k in the default Theta = k ln n (n = fitting points); the paper's k is 9."""
     grid_step: int = 8
-    """Fitting points are every grid_step-th pixel of the depth map (8 -> 60x80 at 480x640)."""
+    """Fit on every n-th pixel of the depth map in each direction (8: 60x80 = 4800 points at 480x640)."""
     occlusion_aware: bool = True
-    """Score with the occlusion-aware inlier count (OAI); False = plain inliers (the no-OAI baselines)."""
+    """Score with the occlusion-aware inlier count (OAI); off = plain inlier counting (the paper's no-OAI
+    baselines)."""
     sampler: str = "sequential"
-    """uniform | sequential (weights 1 - max(state, 0): Sequential RANSAC, points already explained are
-    drawn less) | learned (the sampling-weight network, Sec. 3.2.1)."""
+    """Sampling weights of the points of minimal sets (of a localised set's first point): ``sequential``
+    (1 - max(state, 0), Sequential RANSAC: points already explained are drawn less), ``learned`` (the
+    sampling-weight network, Sec. 3.2.1), ``uniform``; ``local`` = sequential with every set localised."""
     local_fraction: float = 0.75
-    """Share of each batch's hypotheses whose minimal set is localised: the first point from the sampling
+    """Share of minimal sets drawn from a 3D ball (radii ``local_radii_m``) around their first point; 0 = the
+    paper's global sets.
+
+    Of each batch's hypotheses, this share has a localised minimal set: the first point from the sampling
     weights, the other C - 1 from a 3D ball around it (sampling/proposals.py). The rest are global sets
-    (all C points from the sampling weights, the paper's). 0 = the paper's sampling."""
+    (all C points from the sampling weights, the paper's)."""
     local_radii_m: tuple[float, ...] = (0.15, 0.3, 0.6, 1.2)
     """Radii (m) of the balls of localised sets, one drawn per hypothesis."""
     max_batches: int = 4
-    """Adaptive termination: when the best hypothesis of a step does not gain Theta, further batches of
-    |H| hypotheses are drawn, up to this many per step, until a structure that would gain Theta would
-    have been drawn with probability ``confidence``. 1 = the paper (one batch, then stop)."""
+    """Adaptive termination: at most this many batches of |H| hypotheses per step before concluding that
+    nothing gains Theta; 1 = the paper (one batch, then stop).
+
+    When the best hypothesis of a step does not gain Theta, further batches of |H| hypotheses are drawn, up
+    to this many per step, until a structure that would gain Theta would have been drawn with probability
+    ``confidence``."""
     confidence: float = 0.99
     """Adaptive termination: the probability of having drawn a structure that gains Theta."""
     local_success: float = 0.05
     """Adaptive termination: assumed probability that a localised set seeded on a structure yields a
     hypothesis that wins it (a conservative figure; global sets count as never winning a small one)."""
     solver: str = "numerical"
-    """numerical (PCA + Adam) | neural (regression network) | onnx."""
+    """``numerical`` (PCA + Adam), ``neural`` (the regression network), ``onnx`` (the neural solver exported
+    with ``cuboids export --onnx``)."""
     a_min: float = 1e-3
     """a_min: smallest cuboid half-size, m."""
     a_max: float = 2.0
     """a_max: largest cuboid half-size, m."""
     slab_max_m: float | None = 4.0
-    """Largest half-size of a slab (a box whose thinnest axis is under a quarter of its middle one) along
-    its two long axes when the winner grows, m: a wall or a floor may be 8 m long while its thickness
-    stays bounded, instead of being split into patches (real frames: coverage 69.6 -> 73.8 %, AUC@20
-    65.7 -> 67.0 %; synthetic test split: AUC@20 92.0 -> 92.4 %). None = a_max (the paper's bound)."""
+    """Largest half-length (m) of a wall or floor slab along its long axes when the winner grows (other
+    boxes: ``a_max``).
+
+    A slab is a box whose thinnest axis is under a quarter of its middle one; its two long axes may grow to
+    this bound, so that a wall or a floor may be 8 m long while its thickness stays bounded, instead of
+    being split into patches (real frames: coverage 69.6 -> 73.8 %, AUC@20 65.7 -> 67.0 %; synthetic test
+    split: AUC@20 92.0 -> 92.4 %). None = a_max (the paper's bound)."""
     align: str = "manhattan"
-    """Orientation of the selected cuboids: free (any rotation, the paper) | gravity (one axis vertical,
-    any yaw) | manhattan (the room's axes, or a free yaw where that fits better; the default: real frames
-    AUC@20 73.3 % against 72.4 % free, synthetic test split 93.5 % both). gravity and manhattan need an up
-    direction: ``gravity_down`` or one estimated from the depth map (else the fit stays free)."""
+    """Orientation of the selected cuboids: ``manhattan`` (walls, floor and ceiling on the room's axes, other
+    boxes on them or upright with a free yaw), ``gravity`` (upright boxes, free yaw), ``free`` (any
+    rotation, the paper). gravity and manhattan need the down direction: ``gravity_down`` or one estimated
+    from the depth map (else the fit stays free).
+
+    manhattan is the default: real frames AUC@20 73.3 % against 72.4 % free, synthetic test split 93.5 %
+    both."""
     upright_fraction: float = 0.5
     """With ``align`` gravity or manhattan: the share of each batch's minimal sets solved as upright,
-    yaw-only boxes (manhattan: half of them on the room's axes, no rotation at all); the rest are free."""
+    yaw-only boxes; the rest are free.
+
+    With manhattan half of the upright ones keep the room's axes (no rotation at all)."""
     gravity_down: tuple[float, float, float] | None = None
-    """Down direction in camera coordinates given by the user (an IMU, ARKit); None = estimate it from the
-    depth map when ``align`` needs it."""
+    """Down direction in camera coordinates from a sensor (an IMU, ARKit); by default it is estimated from
+    the depth map where ``align`` needs it.
+
+    None = estimate it."""
     solver_lr: float = 0.01
     """Learning rate of the numerical solver's Adam (0.01 NYU, 0.5 outdoors)."""
     solver_iters: int = 50
@@ -83,11 +113,14 @@ class FitConfig:
     rescore_top: int = 64
     """Hypotheses rescored on all points when the fast path is on."""
     refine: bool = True
-    """Refine each selected cuboid on its inliers by minimising their occlusion-aware distance, keeping it
-    only if the inlier-count gain does not drop (fitting/refine.py). False = the paper's plain estimator."""
+    """Refine each selected cuboid on its inliers and grow it (``grow_rounds``); off = the paper's plain
+    estimator.
+
+    Refinement minimises the inliers' occlusion-aware distance and keeps the refined box only if its
+    inlier-count gain does not drop (fitting/winner.py refine_winner, fitting/refine.py)."""
     grow_rounds: int = 8
     """After refinement, up to this many rounds push the winner's faces outwards while its inlier-count
-    gain rises (fitting/pipeline.py grow_cuboid): a minimal set of six points spans only part of a wall or
+    gain rises (fitting/winner.py grow_cuboid): a minimal set of six points spans only part of a wall or
     a table. 0 = no growing."""
     grow_thickness: bool = True
     """Growing may also thicken a slab (a seat top grows down into the seat's front)."""
