@@ -502,6 +502,18 @@ def run_job(
         torch.set_num_threads(threads_before)
 
 
+def warmup_cosine_lr(
+    step: int, total: int, lr: float, warmup: int, final_ratio: float, time_fraction: float = 0.0
+) -> float:
+    """The learning rate of step ``step`` (0-based) of ``total``: a linear warm-up over ``warmup`` steps,
+    then a cosine decay to ``final_ratio * lr`` that follows the time budget (``time_fraction``, the share
+    used) when that runs out first."""
+    if step < warmup:
+        return lr * (step + 1) / warmup
+    progress = min(1.0, max((step - warmup) / max(1, total - warmup), time_fraction))
+    return lr * (final_ratio + (1.0 - final_ratio) * 0.5 * (1.0 + math.cos(math.pi * progress)))
+
+
 def batched(order: list[int], batch: int) -> Iterator[list[int]]:
     """``order`` in consecutive chunks of ``batch`` (the last one may be shorter)."""
     for b in range(0, len(order), batch):
