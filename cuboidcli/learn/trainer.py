@@ -514,6 +514,27 @@ def warmup_cosine_lr(
     return lr * (final_ratio + (1.0 - final_ratio) * 0.5 * (1.0 + math.cos(math.pi * progress)))
 
 
+def shared_batch_step(
+    ctx: DistContext,
+    optimizer: torch.optim.Optimizer,
+    params: Iterable[torch.Tensor],
+    batch: list[int],
+    one: Callable[[int], list[dict[str, float]]],
+) -> dict[str, float]:
+    """One optimizer step on the items of a global ``batch`` split over the ranks: this rank runs
+    ``one(item)`` (forward and backward, each scaled to its share of the global batch, returning records
+    of floats) on its share (:meth:`~DistContext.share`; it may have none), the gradients are summed over
+    the ranks (one all-reduce, not DistributedDataParallel: the networks run several times per item) and
+    every rank steps with the same gradient. Returns the mean of all ranks' records."""
+    optimizer.zero_grad(set_to_none=True)
+    records = []
+    for item in ctx.share(batch):
+        records += one(item)
+    ctx.sum_gradients(params)
+    optimizer.step()
+    return _mean([r for shard in ctx.gather(records) for r in shard])  # in item order per rank
+
+
 def batched(order: list[int], batch: int) -> Iterator[list[int]]:
     """``order`` in consecutive chunks of ``batch`` (the last one may be shorter)."""
     for b in range(0, len(order), batch):
