@@ -95,7 +95,7 @@ def test_trains_resumes_and_extends(app, dataset, tmp_path):
 
 
 def test_ctrl_c_points_at_last_pt(app, dataset, tmp_path, monkeypatch):
-    import cuboidcli.depth.train as train_module
+    import cuboidcli.learn.depth_train as train_module
 
     real = train_module.train_depth
 
