@@ -19,8 +19,8 @@ from cuboidcli.cli.common import (
     console,
     fail,
     no_empty_folder,
-    quiet_libraries,
     resolve_device,
+    run_as_module,
     user_errors,
 )
 
@@ -205,15 +205,8 @@ def _print_json(record: dict) -> None:
 def module_main(argv: list[str] | None = None) -> None:
     """``python -m cuboidcli.depth.train ARGV``: this command with ``--json`` (``argv`` None: the process's
     arguments). Returns when it succeeds; exits with the command's status otherwise."""
-    quiet_libraries()
-    app = typer.Typer(add_completion=False)
-    app.command()(train_depth_cmd)
-    args = [*(sys.argv[1:] if argv is None else argv), "--json"]
-    try:
-        typer.main.get_command(app).main(args=args, prog_name="python -m cuboidcli.depth.train")
-    except SystemExit as e:
-        if e.code not in (0, None):
-            raise
+    args = sys.argv[1:] if argv is None else list(argv)
+    run_as_module(train_depth_cmd, [*args, "--json"], "python -m cuboidcli.depth.train")
 
 
 def register(train_app: typer.Typer) -> None:
