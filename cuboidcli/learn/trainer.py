@@ -95,8 +95,8 @@ class RunConfig:
     """End after this many epochs in all, as an interruption would (tests)."""
     resume: Path | None = None
     """The state the run continued from (for ``config.json``; :func:`run_job` reads it if not given)."""
-    threads: int = 1
-    """torch's CPU threads during the run."""
+    threads: int | None = 1
+    """torch's CPU threads during the run (None: as they are)."""
     device: str = "cpu"
     """torch device; under torchrun ``cuda`` becomes the rank's GPU (``cuda:LOCAL_RANK``)."""
     backend: str | None = None
@@ -492,7 +492,7 @@ def run_job(
     if state is None and cfg.resume is not None:
         state = read_state(cfg.resume, job.state_kind, f"{job.name} training")
     threads_before = torch.get_num_threads()
-    torch.set_num_threads(cfg.threads)
+    torch.set_num_threads(cfg.threads or threads_before)
     try:
         with distributed(cfg.device, cfg.backend) as ctx:
             if ctx.is_main:
