@@ -8,7 +8,9 @@ warm-up and a cosine decay, gradient-norm clipping.
 
 Files in ``out_dir``: ``config.json`` (resolved configs), ``log.jsonl`` (one record per log / validation
 event), ``last.pt`` and ``step_XXXXXXX.pt`` (training state: weights, optimizer, RNG, iteration; the last
-``keep_snapshots`` are kept) and ``best.pt`` (weights-only, the lowest validation residual so far).
+``keep_snapshots`` are kept) and ``best.pt`` (weights-only, the lowest validation residual so far; the same
+file as ``solver_v2.pt`` too, the name ``--weights OUT`` reads). The loop is
+:func:`cuboidcli.learn.trainer.run_job`'s (:class:`SolverJob`).
 This module prints nothing: progress goes to the ``on_event`` callback.
 
 Multi-process (``torchrun``, see :mod:`cuboidcli.learn.distributed`): every rank holds a replica wrapped in
@@ -46,10 +48,11 @@ from cuboidcli.learn.trainer import (
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
 from cuboidcli.nets.solver import SolverNet, SolverNetConfig
 from cuboidcli.solvers.synthetic import SyntheticBatch, SyntheticConfig, seeded_batch
-from cuboidcli.weights import default_path
+from cuboidcli.weights import FILES, default_path
 
 STATE_KIND = "solver-train-state"
-#: The best weights (lowest validation residual), a plain weights file.
+#: The best weights (lowest validation residual), a plain weights file; written under the name of the solver
+#: in a weights folder (``solver_v2.pt``) as well.
 BEST = "best.pt"
 #: Seeds of the held-out validation sets live far from the training seeds (seed * 2^32 + iteration).
 VAL_SEED = 2**62 + 2024
@@ -235,7 +238,8 @@ class SolverJob(TrainingJob):
             "train_config": asdict(self.cfg),
             "data_config": self.data_cfg.to_dict(),
         }
-        return {BEST: checkpoint_dict(self.net, meta)}
+        weights = checkpoint_dict(self.net, meta)
+        return {BEST: weights, FILES["solver"]: weights}
 
     def settings(self, run: Run) -> dict:
         return {"train": asdict(self.cfg), "net": self.net_cfg.to_dict(), "data": self.data_cfg.to_dict()}
