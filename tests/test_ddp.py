@@ -56,7 +56,8 @@ def test_torchrun_two_processes_train_one_model(tmp_path):
 
     # One set of outputs, written by rank 0 alone: one line per event, one final message.
     names = sorted(p.name for p in out.iterdir())
-    assert names == ["best.pt", "config.json", "last.pt", "log.jsonl", "step_0000003.pt", "step_0000006.pt"]
+    snapshots = ["step_0000003.pt", "step_0000006.pt"]
+    assert names == ["best.pt", "config.json", "last.pt", "log.jsonl", "solver_v2.pt", *snapshots]
     assert proc.stdout.count("done at step 6") == 1
     records = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
     assert [r["iteration"] for r in records if r["event"] == "val"] == [3, 6]

@@ -252,7 +252,7 @@ def test_reference_errors(onnx_models, rgb):
         fit_scale_shift(raw, np.where(raw == raw[0, 0], 1.0, 0.0))
 
 
-# --- training (cuboidcli.depth.train) ----------------------------------------------------------------
+# --- training (cuboidcli.learn.depth_train) ----------------------------------------------------------
 
 
 @pytest.fixture(scope="module")
@@ -282,7 +282,7 @@ def tiny_dataset(tmp_path_factory):
 
 
 def test_training_logs_checkpoints_and_resumes_exactly(tiny_dataset, tmp_path):
-    from cuboidcli.depth.train import DepthTrainConfig, train_depth
+    from cuboidcli.learn.depth_train import DepthTrainConfig, train_depth
 
     cfg = DepthTrainConfig(epochs=2, batch=4, warmup=2, log_every=1, min_crop=0.7)
     full = train_depth(tiny_dataset, tmp_path / "full", cfg, TINY)

@@ -50,3 +50,32 @@ def test_seed_records_score_seeds_and_train(room_depth, nyu_camera):
     assert torch.isfinite(loss) and float(loss) >= -1e-6  # a KL divergence
     loss.backward()
     assert net.map_head.weight.grad.abs().sum() > 0
+
+
+def test_seed_training_writes_weights_and_resumes_exactly(tmp_path):
+    """train_seed_sampler on the training loop: the weights after every epoch, last.pt, and a resumed run
+    (the seed scores recorded again) ends where the uninterrupted one does."""
+    import json
+
+    from cuboidcli.camera import Camera
+    from cuboidcli.learn.seed_train import train_seed_sampler
+    from tests.conftest import write_room_dataset
+
+    data = tmp_path / "data"
+    write_room_dataset(data, Camera.preset("nyu").scaled(0.25))
+    fit = FitConfig(grid_step=4)
+    cfg = SeedTrainConfig(hypotheses=32, steps=2, epochs=2, width=8, blocks=1)
+    full = train_seed_sampler(data, tmp_path / "a", cfg, fit)
+    assert full == tmp_path / "a" / "sampler_v3.pt"
+    sampler = LearnedSampler.load(full)
+    assert sampler.net.config.maps == 1 and sampler.net.config.prior == "unexplained"
+    epochs = [json.loads(line) for line in (tmp_path / "a" / "log.jsonl").read_text().splitlines()]
+    assert [r["epoch"] for r in epochs if r["event"] == "epoch"] == [1, 2]
+
+    train_seed_sampler(data, tmp_path / "b", SeedTrainConfig(**{**cfg.__dict__, "epochs": 1}), fit)
+    train_seed_sampler(data, tmp_path / "b", cfg, resume=tmp_path / "b" / "last.pt")
+    a = torch.load(tmp_path / "a" / "last.pt", weights_only=True)
+    b = torch.load(tmp_path / "b" / "last.pt", weights_only=True)
+    assert a["epoch"] == b["epoch"] == 2 and a["step"] == b["step"] > 0
+    for k, v in a["state_dict"].items():
+        torch.testing.assert_close(v, b["state_dict"][k], rtol=0, atol=0)

@@ -227,3 +227,9 @@ def test_resume_continues_exactly(tmp_path):
     # The best weights are a plain inference checkpoint with the validation residuals in their meta.
     best = torch.load(tmp_path / "a" / "best.pt", weights_only=True)
     assert set(best) == {"config", "state_dict", "meta"} and "noisy" in best["meta"]["validation"]
+    # ... written as solver_v2.pt too, so that the output folder works as --weights OUT
+    from cuboidcli.solvers.neural import load_solver_net
+    from cuboidcli.weights import resolve
+
+    net = load_solver_net(resolve("solver", tmp_path / "a"), "cpu")
+    assert all(torch.equal(t, best["state_dict"][k]) for k, t in net.state_dict().items())

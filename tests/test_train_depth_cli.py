@@ -95,7 +95,7 @@ def test_trains_resumes_and_extends(app, dataset, tmp_path):
 
 
 def test_ctrl_c_points_at_last_pt(app, dataset, tmp_path, monkeypatch):
-    import cuboidcli.depth.train as train_module
+    import cuboidcli.learn.depth_train as train_module
 
     real = train_module.train_depth
 
@@ -158,3 +158,19 @@ def test_module_entry_point_still_prints_json(dataset, tmp_path, capsys):
     records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
     assert records[0]["event"] == "start" and records[-1]["event"] == "done" and records[-1]["epoch"] == 1
     assert (tmp_path / "m" / "best.pt").is_file()
+
+
+def test_module_entry_point_of_the_depth_errors(dataset, tmp_path, capsys):
+    """``python -m cuboidcli.depth.evaluate`` (its options parsed in cuboidcli/cli/depth_evaluate.py)."""
+    from cuboidcli.depth.evaluate import main
+    from cuboidcli.io.dataset import list_frames
+
+    main([str(dataset), "--split", "val", "--out", str(tmp_path / "errors.json")])
+    lines = capsys.readouterr().out.splitlines()
+    val = [f.name for f in list_frames(dataset, "val")]
+    assert [line.split()[0] for line in lines] == [*val, "mean"] and "AbsRel" in lines[-1]
+    report = json.loads((tmp_path / "errors.json").read_text())
+    assert set(report["frames"]) == set(val) and len(report["model"]["sha256"]) == 64
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(tmp_path / "missing")])
+    assert exit_info.value.code == 2

@@ -124,6 +124,19 @@ def check_training_paths(data, resume, out) -> None:
         fail(f"--out {out} is a file; give a folder")
 
 
+def run_as_module(command, argv: list[str] | None, prog: str) -> None:
+    """Run one command function as a program of its own (the ``python -m cuboidcli....`` entry points):
+    ``argv`` None means the process's arguments. Returns when it succeeds, else exits with its status."""
+    quiet_libraries()
+    app = typer.Typer(add_completion=False)
+    app.command()(command)
+    try:
+        typer.main.get_command(app).main(args=sys.argv[1:] if argv is None else list(argv), prog_name=prog)
+    except SystemExit as e:
+        if e.code not in (0, None):
+            raise
+
+
 def resolve_device(device: str) -> str:
     import torch
 

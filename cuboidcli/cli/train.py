@@ -70,6 +70,8 @@ def solver(
 ) -> None:
     """Pre-train the neural cuboid solver on synthetic boxes; best weights go to OUT/best.pt.
 
+    The same weights are in OUT/solver_v2.pt, the name 'cuboids fit --solver neural --weights OUT' reads.
+
     Multi-process (data parallel, one process per GPU or per group of CPU cores), e.g. 2 processes:
 
         torchrun --standalone --nproc_per_node 2 -m cuboidcli.cli.main train solver --out runs/solver

@@ -1,12 +1,15 @@
 """``cuboids train depth``: train the built-in monocular depth network on an RGB-D dataset folder.
 
 Registered on the ``train`` sub-command group by :func:`register`; the training itself lives in
-:mod:`cuboidcli.depth.train` (whose ``python -m`` entry point has the same defaults).
+:mod:`cuboidcli.learn.depth_train`. ``python -m cuboidcli.depth.train ARGS``, the older entry point, runs
+this command with ``--json`` (:func:`module_main`).
 """
 
 from __future__ import annotations
 
+import json
 import math
+import sys
 from pathlib import Path
 
 import typer
@@ -17,6 +20,7 @@ from cuboidcli.cli.common import (
     fail,
     no_empty_folder,
     resolve_device,
+    run_as_module,
     user_errors,
 )
 
@@ -33,8 +37,8 @@ def _duration(seconds: float) -> str:
 
 
 class _EventPrinter:
-    """Prints the trainer's records (``on_event`` of :func:`~cuboidcli.depth.train.train_depth`), one line
-    each; remembers the run's length from the ``start`` record."""
+    """Prints the trainer's records (``on_event`` of :func:`~cuboidcli.learn.depth_train.train_depth`), one
+    line each; remembers the run's length from the ``start`` record."""
 
     def __init__(self, header: str = "") -> None:
         self.header = header
@@ -131,13 +135,16 @@ def train_depth_cmd(
         "first, --epochs or this, and the run then ends with a validation. With --resume: the checkpoint's "
         "unless given.",
     ),
+    json_lines: bool = typer.Option(
+        False, "--json", help="Print the training records as JSON lines on stdout instead of progress lines."
+    ),
 ) -> None:
     """Train the built-in depth network on DATA; the best weights (lowest val AbsRel) go to OUT/best.pt.
 
     Images are resized to the net's 320x240 input; OUT also gets config.json, log.jsonl and last.pt.
     Use the weights with: cuboids fit IMAGE --depth-model OUT/best.pt ...
     """
-    from cuboidcli.depth.train import RESUME_OVERRIDES, DepthTrainConfig, train_depth
+    from cuboidcli.learn.depth_train import RESUME_OVERRIDES, DepthTrainConfig, train_depth
 
     check_training_paths(data, resume, out)
     if resume is None and (out / "last.pt").is_file():
@@ -175,6 +182,8 @@ def train_depth_cmd(
             options = ", ".join("--" + name.replace("_", "-") for name in ignored)
             _say(f"warning: {options}: ignored with --resume (the checkpoint's values apply)", style="yellow")
     printer = _EventPrinter(f"training the depth net on {data}; logs and checkpoints in {out}")
+    if json_lines:
+        printer = _print_json  # type: ignore[assignment]
     with user_errors(), no_empty_folder(out):
         try:
             train_depth(data, out, cfg, resume=resume, on_event=printer, resume_overrides=overrides)
@@ -187,6 +196,17 @@ def train_depth_cmd(
             if resume is not None:
                 fail(f"interrupted; continue with --resume {resume}", code=130)
             fail("interrupted before the first epoch ended; nothing to resume", code=130)
+
+
+def _print_json(record: dict) -> None:
+    typer.echo(json.dumps(record))
+
+
+def module_main(argv: list[str] | None = None) -> None:
+    """``python -m cuboidcli.depth.train ARGV``: this command with ``--json`` (``argv`` None: the process's
+    arguments). Returns when it succeeds; exits with the command's status otherwise."""
+    args = sys.argv[1:] if argv is None else list(argv)
+    run_as_module(train_depth_cmd, [*args, "--json"], "python -m cuboidcli.depth.train")
 
 
 def register(train_app: typer.Typer) -> None:

@@ -30,10 +30,9 @@ def _print_event(record: dict) -> None:
             highlight=False,
         )
     elif kind == "step":
-        rate = record["scenes"] / max(record["seconds"], 1e-9)
         console.print(
             f"epoch {record['epoch']} step {record['step']}: expected I_c {-record['expected_loss']:.3f} "
-            f"best gain {record['best_gain']:.3f} ({rate:.2f} scenes/s)",
+            f"best gain {record['best_gain']:.3f} ({record['scenes_per_s']:.2f} scenes/s)",
             highlight=False,
         )
     elif kind == "val":

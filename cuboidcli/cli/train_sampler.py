@@ -34,8 +34,7 @@ def _print_event(record: dict) -> None:
         console.print(
             f"epoch {record['epoch']} step {record['step']}: expected I_c {-record['expected_loss']:.3f} "
             f"best gain {record['best_gain']:.3f} corr {record['corr']:+.2f} H(q) {record['entropy']:.2f} "
-            f"({record['seconds']:.1f} s, {len(record['scenes']) / max(record['seconds'], 1e-9):.2f} "
-            "scenes/s)",
+            f"({record['seconds']:.1f} s, {record['scenes_per_s']:.2f} scenes/s)",
             highlight=False,
         )
     elif kind == "val":

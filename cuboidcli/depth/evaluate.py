@@ -3,18 +3,16 @@
 Per frame: AbsRel, RMSE (m) and delta < 1.25 over the valid ground-truth pixels (raw depth: holes excluded,
 no crop, no depth cap), then their means over frames. In flat folders that hold both ``<name>_depth_raw``
 and ``<name>_depth_filled``, the raw map is the ground truth by default: in-painted depth is itself an
-estimate. ``python -m cuboidcli.depth.evaluate`` is a stop-gap entry point until the CLI has one.
+estimate. ``python -m cuboidcli.depth.evaluate DATA`` prints them (:mod:`cuboidcli.cli.depth_evaluate`).
 """
 
 from __future__ import annotations
 
-import argparse
-import hashlib
+import importlib
 from dataclasses import replace
 from pathlib import Path
 
 from cuboidcli.depth.metrics import depth_errors, mean_errors
-from cuboidcli.io.atomic import atomic_write_json
 from cuboidcli.io.dataset import DEPTH_SUFFIXES, Frame, list_frames
 
 
@@ -57,27 +55,10 @@ def evaluate_dataset(estimator, root: str | Path, split: str | None = None, raw:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """``python -m cuboidcli.depth.evaluate DATA [--model PATH] [--split NAME] [--out FILE.json]``."""
-    from cuboidcli.depth.estimator import make_depth_estimator
-    from cuboidcli.weights import resolve
-
-    p = argparse.ArgumentParser(description="Depth errors of a depth estimator on an RGB-D dataset folder.")
-    p.add_argument("data")
-    p.add_argument("--model", default=None, help="built-in .pt checkpoint or metric .onnx (default: shipped)")
-    p.add_argument("--split", default=None)
-    p.add_argument("--filled", action="store_true", help="use in-painted ground truth where both exist")
-    p.add_argument("--out", default=None, help="write the report as JSON")
-    a = p.parse_args(argv)
-    model = resolve("depth", a.model or None)
-    report = evaluate_dataset(make_depth_estimator(model), a.data, a.split, raw=not a.filled)
-    report["model"] = {"path": str(model), "sha256": hashlib.sha256(model.read_bytes()).hexdigest()}
-    report["data"] = str(a.data)
-    for name, e in report["frames"].items():
-        print(f"{name:24s} AbsRel {e['abs_rel']:.3f}  RMSE {e['rmse_m']:.3f} m  d<1.25 {e['delta1']:.3f}")
-    m = report["mean"]
-    print(f"{'mean':24s} AbsRel {m['abs_rel']:.3f}  RMSE {m['rmse_m']:.3f} m  d<1.25 {m['delta1']:.3f}")
-    if a.out:
-        atomic_write_json(a.out, report)
+    """``python -m cuboidcli.depth.evaluate DATA [--model PATH] [--split NAME] [--filled] [--out FILE.json]``:
+    the command line is :mod:`cuboidcli.cli.depth_evaluate`, reached through :func:`importlib.import_module`
+    when it runs (the depth package sits below ``cli`` in the import layers and does not import it)."""
+    importlib.import_module("cuboidcli.cli.depth_evaluate").module_main(argv)
 
 
 if __name__ == "__main__":

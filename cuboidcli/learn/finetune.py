@@ -54,7 +54,6 @@ continuation, not the uninterrupted run). The ``end`` record then adds ``world_s
 
 from __future__ import annotations
 
-import json
 import math
 import time
 from collections.abc import Callable
@@ -71,10 +70,9 @@ from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth, prepare_points
 from cuboidcli.geometry.fused import cuboid_values
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
-from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
-from cuboidcli.io.checkpoints import load_net, read_checkpoint
+from cuboidcli.io.checkpoints import load_net
 from cuboidcli.io.dataset import Frame
-from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
+from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.sampler_data import dataset_splits, epoch_order
 from cuboidcli.learn.sampler_loss import (
     CORR_MODES,
@@ -83,7 +81,19 @@ from cuboidcli.learn.sampler_loss import (
     inlier_masking_loss,
     set_log_prob,
 )
-from cuboidcli.learn.sampler_train import draw_seed
+from cuboidcli.learn.sampler_train import draw_generator, draw_states
+from cuboidcli.learn.trainer import (
+    Run,
+    RunConfig,
+    StepResult,
+    TrainingJob,
+    Validation,
+    batched,
+    read_state,
+    resumed_config,
+    run_job,
+    shared_batch_step,
+)
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet
 from cuboidcli.nets.sampler import net_from_checkpoint as sampler_from_checkpoint
@@ -403,12 +413,132 @@ def validate(
     return out
 
 
-def _weights_files(nets: Nets, out_dir: Path, meta: dict) -> None:
-    atomic_torch_save(checkpoint_dict(nets.sampler, meta), out_dir / SAMPLER_NAME)
-    if nets.solver is not None:
-        atomic_torch_save(checkpoint_dict(nets.solver, meta), out_dir / SOLVER_NAME)
-    if nets.depth is not None:
-        atomic_torch_save(checkpoint_dict(nets.depth, meta), out_dir / DEPTH_NAME)
+class FinetuneJob(TrainingJob):
+    """End-to-end fine-tuning as a job of :func:`~cuboidcli.learn.trainer.run_job`: epoch-based, B scenes a
+    step split over the ranks; the starting weights are validated too and may stay the best."""
+
+    name = "finetune"
+    state_kind = STATE_KIND
+    rate_key = "scenes_per_s"
+    initial_is_candidate = True
+
+    def __init__(self, cfg: FinetuneConfig, data: Path, weights: tuple, fit: FitConfig):
+        self.cfg, self.data, self.weights, self.fit = cfg, data, weights, fit
+
+    def setup(self, run: Run, state: dict | None) -> None:
+        from cuboidcli.solvers.implicit import polished
+        from cuboidcli.solvers.numerical import NumericalSolver
+
+        cfg, fit = self.cfg, self.fit
+        self.nets = nets = load_nets(cfg, *self.weights)
+        if state is not None:
+            for name, module in nets.modules().items():
+                module.load_state_dict(state["nets"][name])
+        for module in nets.modules().values():
+            module.train()
+        if nets.depth is not None:
+            nets.depth.eval()
+        rates = {
+            "sampler": cfg.lr,
+            "solver": cfg.lr if cfg.solver_lr is None else cfg.solver_lr,
+            "depth": cfg.lr if cfg.depth_lr is None else cfg.depth_lr,
+        }
+        groups = []
+        for name, module in nets.modules().items():
+            module.requires_grad_(rates[name] > 0)  # a fixed network needs no gradients
+            if rates[name] > 0:
+                groups.append({"params": list(module.parameters()), "lr": rates[name]})
+        if not groups:
+            raise ValueError("every learning rate is 0: nothing to fine-tune")
+        self.trained = [p for g in groups for p in g["params"]]
+        self.optimizer = torch.optim.Adam(groups)
+        self.gen = draw_generator(cfg.seed, run.ctx, state, run.epoch)
+        self.numerical = polished(NumericalSolver(lr=fit.solver_lr, iters=fit.solver_iters))
+        self._load_data()
+
+    def _load_data(self) -> None:
+        cfg, data = self.cfg, self.data
+        train_frames, val_frames, self.split = dataset_splits(data)
+        if cfg.val_frames is not None:
+            val_frames = val_frames[: cfg.val_frames]
+        self.val_frames = val_frames
+        rgb_size = None
+        if self.nets.depth is not None:
+            rgb_size = (self.nets.depth.config.input_height, self.nets.depth.config.input_width)
+        if cfg.workers > 1:
+            from concurrent.futures import ThreadPoolExecutor
+
+            with ThreadPoolExecutor(cfg.workers) as pool:
+                loaded = list(pool.map(lambda f: load_scene(f, cfg.grid_step, rgb_size), train_frames))
+        else:
+            loaded = [load_scene(f, cfg.grid_step, rgb_size) for f in train_frames]
+        self.scenes = [s for s in loaded if s is not None]
+        if not self.scenes:
+            raise ValueError(
+                f"no usable training frames in {data} (each needs >= 6 valid points"
+                + (" and an RGB image)" if cfg.rgb else ")")
+            )
+        if cfg.rgb and any(not _has_rgb(f) for f in val_frames):
+            raise ValueError("fine-tuning from RGB needs RGB images for the val frames too")
+
+    def batches(self, run: Run):
+        cfg = self.cfg
+        return batched(epoch_order(len(self.scenes), run.epoch, cfg.seed, cfg.scenes_per_epoch), cfg.batch)
+
+    def step(self, run: Run, batch: list[int]) -> StepResult:
+        cfg, fit = self.cfg, self.fit
+
+        def one(i: int) -> list[dict]:
+            # scaled by 1 / B of the global batch: the sum over the ranks is the global batch's gradient
+            loss, records = scene_loss(self.nets, self.scenes[i], cfg, fit, self.numerical, self.gen)
+            (loss / len(batch)).backward()
+            return records
+
+        mean = shared_batch_step(run.ctx, self.optimizer, self.trained, batch, one)
+        return StepResult(mean, {"epoch": run.epoch + 1, "scenes": len(batch)}, items=len(batch))
+
+    def validate(self, run: Run) -> Validation | None:
+        if not self.val_frames:
+            return None
+        record = validate(self.nets, self.val_frames, self.cfg, self.fit, run.ctx)
+        return Validation(float(record["auc20cm_pct"]), record)
+
+    def state(self, run: Run) -> dict:
+        return {
+            "config": asdict(self.cfg),
+            "fit_config": self.fit.to_dict(),
+            "nets": {k: m.state_dict() for k, m in self.nets.modules().items()},
+            **draw_states(self.gen, run.ctx),
+        }
+
+    def networks(self) -> dict[str, torch.nn.Module]:
+        return self.nets.modules()
+
+    def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
+        """The networks under the names ``cuboids fit --weights DIR`` reads."""
+        meta = {"finetune": asdict(self.cfg), "epoch": run.epoch, "val": validation, "data": str(self.data)}
+        return {FILES[kind]: checkpoint_dict(net, meta) for kind, net in self.nets.modules().items()}
+
+    def settings(self, run: Run) -> dict:
+        return {
+            "finetune": asdict(self.cfg),
+            "fit": self.fit.to_dict(),
+            "data": str(self.data),
+            **self.start_fields(run),
+        }
+
+    def start_fields(self, run: Run) -> dict:
+        return {"split": self.split, "train_frames": len(self.scenes), "val_frames": len(self.val_frames)}
+
+    def end_fields(self, run: Run) -> dict:
+        return {"epochs_done": run.epoch, "best": run.best}
+
+    def agreement(self) -> object:
+        return ([s.name for s in self.scenes], [f.name for f in self.val_frames])
+
+
+#: Fields of the caller's config that replace the checkpoint's when resuming.
+RESUME_OVERRIDES = ("epochs", "threads", "device", "max_minutes", "workers")
 
 
 def finetune(
@@ -426,249 +556,30 @@ def finetune(
     """Fine-tune end to end (see the module docstring); returns the final record.
 
     ``*_weights``: starting points (None = the shipped ones). ``resume``: a ``last.pt`` of this trainer;
-    the run's schedule and networks come from it, only ``epochs``, ``threads``, ``device`` and
-    ``max_minutes`` of ``cfg`` apply.
+    the run's schedule and networks come from it, only the fields of ``cfg`` in :data:`RESUME_OVERRIDES`
+    apply.
 
     Launched by ``torchrun`` with ``WORLD_SIZE > 1``, this joins the process group for the duration of
     the call (``backend``: None = gloo on the CPU, or ``$CUBOIDS_DIST_BACKEND``) and trains data parallel
     as the module docstring describes; every rank must pass the same arguments. Only rank 0 calls
     ``on_event`` and writes to ``out_dir``, which must be visible to every rank for ``resume``.
     """
-    out_dir = Path(out_dir)
     fit = fit or FitConfig()
     state = None
     if resume is not None:
-        state = read_checkpoint(resume)
-        if state.get("kind") != STATE_KIND:
-            raise ValueError(f"{resume} is not a fine-tuning checkpoint (give OUT/last.pt)")
-        keep = {k: getattr(cfg, k) for k in ("epochs", "threads", "device", "max_minutes", "workers")}
-        cfg = replace(FinetuneConfig(**state["config"]), **keep)
+        state = read_state(resume, STATE_KIND, "fine-tuning", "OUT/last.pt")
+        cfg = resumed_config(state["config"], cfg, RESUME_OVERRIDES)
         fit = FitConfig(**state["fit_config"])
-    threads_before = torch.get_num_threads()
-    torch.set_num_threads(cfg.threads)
-    try:
-        with distributed(cfg.device, backend) as ctx:
-            if ctx.is_main:
-                out_dir.mkdir(parents=True, exist_ok=True)
-            emit = (on_event if ctx.is_main else None) or (lambda record: None)
-            weights = (sampler_weights, solver_weights, depth_weights)
-            return _run(ctx, cfg, Path(data), out_dir, weights, state, emit, fit)
-    finally:
-        torch.set_num_threads(threads_before)
-
-
-def _log(out_dir: Path, emit, ctx: DistContext, record: dict) -> None:
-    if not ctx.is_main:
-        return
-    with (out_dir / "log.jsonl").open("a", encoding="utf-8") as f:
-        f.write(json.dumps(record) + "\n")
-    emit(record)
-
-
-def _nets_sha256(nets: Nets) -> str:
-    """One hash over the weights of all the networks of the run."""
-    return state_sha256({f"{k}.{n}": t for k, m in nets.modules().items() for n, t in m.state_dict().items()})
-
-
-def _run(ctx: DistContext, cfg, data, out_dir, weights, state, emit, fit) -> dict:
-    from cuboidcli.solvers.implicit import polished
-    from cuboidcli.solvers.numerical import NumericalSolver
-
-    t_start = time.perf_counter()
-    torch.manual_seed(cfg.seed)
-    nets = load_nets(cfg, *weights)
-    if state is not None:
-        for name, module in nets.modules().items():
-            module.load_state_dict(state["nets"][name])
-    for module in nets.modules().values():
-        module.train()
-    if nets.depth is not None:
-        nets.depth.eval()
-    rates = {
-        "sampler": cfg.lr,
-        "solver": cfg.lr if cfg.solver_lr is None else cfg.solver_lr,
-        "depth": cfg.lr if cfg.depth_lr is None else cfg.depth_lr,
-    }
-    groups = []
-    for name, module in nets.modules().items():
-        module.requires_grad_(rates[name] > 0)  # a fixed network needs no gradients
-        if rates[name] > 0:
-            groups.append({"params": list(module.parameters()), "lr": rates[name]})
-    if not groups:
-        raise ValueError("every learning rate is 0: nothing to fine-tune")
-    trained = [p for g in groups for p in g["params"]]
-    opt = torch.optim.Adam(groups)
-    gen = torch.Generator().manual_seed(draw_seed(cfg.seed, ctx.rank))  # rank 0: seed + 1
-    epoch, best, step = 0, -math.inf, 0
-    if state is not None:
-        opt.load_state_dict(state["optimizer"])
-        # Nothing draws from the global RNG during training (the draws and the frame order have seeded
-        # generators of their own), so rank 0's saved state serves every rank.
-        torch.set_rng_state(state["torch_rng"])
-        epoch, best, step = int(state["epoch"]), float(state["best"]), int(state["step"])
-        draw_rngs = state.get("draw_rngs") or [state["draw_rng"]]  # older checkpoints: rank 0's only
-        if ctx.rank < len(draw_rngs):
-            gen.set_state(draw_rngs[ctx.rank])
-        else:  # resumed on more processes than the checkpoint was written by
-            gen.manual_seed(draw_seed(cfg.seed, ctx.rank, epoch))
-    numerical = polished(NumericalSolver(lr=fit.solver_lr, iters=fit.solver_iters))
-
-    train_frames, val_frames, split = dataset_splits(data)
-    if cfg.val_frames is not None:
-        val_frames = val_frames[: cfg.val_frames]
-    rgb_size = None
-    if nets.depth is not None:
-        rgb_size = (nets.depth.config.input_height, nets.depth.config.input_width)
-    if cfg.workers > 1:
-        from concurrent.futures import ThreadPoolExecutor
-
-        with ThreadPoolExecutor(cfg.workers) as pool:
-            loaded = list(pool.map(lambda f: load_scene(f, cfg.grid_step, rgb_size), train_frames))
-    else:
-        loaded = [load_scene(f, cfg.grid_step, rgb_size) for f in train_frames]
-    scenes = [s for s in loaded if s is not None]
-    if not scenes:
-        raise ValueError(
-            f"no usable training frames in {data} (each needs >= 6 valid points"
-            + (" and an RGB image)" if cfg.rgb else ")")
-        )
-    if cfg.rgb and any(not _has_rgb(f) for f in val_frames):
-        raise ValueError("fine-tuning from RGB needs RGB images for the val frames too")
-    if ctx.active:
-        # A collective check that every rank sees the same data and (resumed) weights: ranks that differ
-        # here would train replicas that silently drift apart.
-        mine = (_nets_sha256(nets), [s.name for s in scenes], [f.name for f in val_frames])
-        if any(other != mine for other in ctx.gather(mine)):
-            raise ValueError(
-                "the processes disagree on the training data or the networks' weights: every rank must "
-                "read the same dataset folder, starting weights (and --resume checkpoint)"
-            )
-    resolved = {
-        "finetune": asdict(cfg),
-        "fit": fit.to_dict(),
-        "data": str(data),
-        "split": split,
-        "train_frames": len(scenes),
-        "val_frames": len(val_frames),
-    }
-    params = {k: sum(p.numel() for p in m.parameters()) for k, m in nets.modules().items()}
-    start = {
-        "event": "start",
-        "epoch": epoch,
-        "epochs": cfg.epochs,
-        "parameters": params,
-        "train_frames": len(scenes),
-        "val_frames": len(val_frames),
-        "split": split,
-    }
-    if ctx.active:
-        resolved["distributed"] = {"world_size": ctx.world_size, "backend": ctx.backend}
-        start["world_size"] = ctx.world_size
-    if ctx.is_main:
-        atomic_write_json(out_dir / "config.json", resolved)
-    _log(out_dir, emit, ctx, start)
-    if state is None and cfg.validate_initial and val_frames:
-        # the starting point is a candidate too: if fine-tuning never beats it, the written weights are
-        # the starting ones and the log says so
-        record = validate(nets, val_frames, cfg, fit, ctx)
-        best = float(record["auc20cm_pct"])
-        _log(out_dir, emit, ctx, {"event": "val", "epoch": 0, "initial": True, **record})
-        if ctx.is_main:
-            meta = {"finetune": asdict(cfg), "epoch": 0, "val": record, "data": str(data)}
-            _weights_files(nets, out_dir, meta)
-
-    while epoch < cfg.epochs:
-        t_epoch = time.perf_counter()
-        order = epoch_order(len(scenes), epoch, cfg.seed, cfg.scenes_per_epoch)
-        epoch_records = []
-        for b in range(0, len(order), cfg.batch):
-            t_step = time.perf_counter()
-            batch = order[b : b + cfg.batch]
-            opt.zero_grad(set_to_none=True)
-            records = []
-            # This rank's share of the step's scenes, each scaled by 1 / B of the global batch: the sum over
-            # the ranks of these partial gradients is the gradient of the global batch.
-            for i in ctx.share(batch):
-                loss, recs = scene_loss(nets, scenes[i], cfg, fit, numerical, gen)
-                (loss / len(batch)).backward()
-                records += recs
-            ctx.sum_gradients(trained)
-            opt.step()
-            step += 1
-            records = [r for shard in ctx.gather(records) for r in shard]  # in scene order per rank
-            mean = {k: float(np.mean([r[k] for r in records])) for k in records[0]}
-            epoch_records.append(mean)
-            _log(
-                out_dir,
-                emit,
-                ctx,
-                {
-                    "event": "step",
-                    "epoch": epoch + 1,
-                    "step": step,
-                    **mean,
-                    "scenes": len(batch),
-                    "seconds": time.perf_counter() - t_step,
-                },
-            )
-        epoch += 1
-        improved, val_record = not val_frames, {}
-        if val_frames:
-            val_record = validate(nets, val_frames, cfg, fit, ctx)
-            value = float(val_record["auc20cm_pct"])
-            improved = value > best
-            best = max(best, value)
-            _log(out_dir, emit, ctx, {"event": "val", "epoch": epoch, "best": improved, **val_record})
-        draw_rngs = ctx.gather(gen.get_state())  # a collective: every rank's generator goes into last.pt
-        if ctx.is_main:
-            blob = {
-                "kind": STATE_KIND,
-                "config": asdict(cfg),
-                "fit_config": fit.to_dict(),
-                "nets": {k: m.state_dict() for k, m in nets.modules().items()},
-                "optimizer": opt.state_dict(),
-                "torch_rng": torch.get_rng_state(),
-                "draw_rng": gen.get_state(),
-                "draw_rngs": draw_rngs,
-                "world_size": ctx.world_size,
-                "epoch": epoch,
-                "step": step,
-                "best": best,
-            }
-            atomic_torch_save(blob, out_dir / "last.pt")
-            if improved:
-                meta = {"finetune": asdict(cfg), "epoch": epoch, "val": val_record, "data": str(data)}
-                _weights_files(nets, out_dir, meta)
-        summary = {k: float(np.mean([r[k] for r in epoch_records])) for k in epoch_records[0]}
-        _log(
-            out_dir,
-            emit,
-            ctx,
-            {
-                "event": "epoch",
-                "epoch": epoch,
-                **summary,
-                "best": improved,
-                "seconds": time.perf_counter() - t_epoch,
-            },
-        )
-        if cfg.max_minutes is not None:
-            # Rank 0's clock decides for every rank: ranks that disagree would deadlock in the next step.
-            over = time.perf_counter() - t_start > 60.0 * cfg.max_minutes
-            if ctx.broadcast_float(float(over)) > 0.5:
-                _log(out_dir, emit, ctx, {"event": "stop", "epoch": epoch, "reason": "max_minutes"})
-                break
-    final = {
-        "event": "end",
-        "epochs_done": epoch,
-        "best": best,
-        "out": str(out_dir),
-        "seconds": time.perf_counter() - t_start,
-    }
-    if ctx.active:
-        final["world_size"] = ctx.world_size
-        final["param_sha256"] = ctx.gather(_nets_sha256(nets))
-    _log(out_dir, emit, ctx, final)
-    # Rank 0 finishes its files before any rank tears the process group down.
-    ctx.barrier()
-    return final
+    run = RunConfig(
+        Path(out_dir),
+        seed=cfg.seed,
+        max_epochs=cfg.epochs,
+        max_minutes=cfg.max_minutes,
+        validate_initial=cfg.validate_initial,
+        resume=None if resume is None else Path(resume),
+        threads=cfg.threads,
+        device=cfg.device,
+        backend=backend,
+    )
+    weights = (sampler_weights, solver_weights, depth_weights)
+    return run_job(FinetuneJob(cfg, Path(data), weights, fit), run, state, on_event)

@@ -42,8 +42,6 @@ number, the ranks the checkpoint has a state for restore it and the others start
 
 from __future__ import annotations
 
-import json
-import math
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
@@ -55,13 +53,23 @@ import torch
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import PreparedPoints, fit_depth
 from cuboidcli.geometry.kernels import combine
-from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
-from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.io.dataset import Frame
-from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
+from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
 from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, occlusion_threshold
-from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
+from cuboidcli.learn.trainer import (
+    Run,
+    RunConfig,
+    StepResult,
+    TrainingJob,
+    Validation,
+    batched,
+    read_state,
+    resumed_config,
+    run_job,
+    shared_batch_step,
+)
+from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext
 from cuboidcli.sampling.learned import LearnedSampler, grid_inputs
@@ -202,10 +210,6 @@ def train_scene(
     return records
 
 
-def _mean_records(records: list[dict]) -> dict:
-    return {k: float(np.mean([r[k] for r in records])) for k in records[0]}
-
-
 def metrics_available() -> bool:
     try:
         import cuboidcli.evaluation.metrics  # noqa: F401
@@ -266,163 +270,131 @@ def validate(
     return out, key, float(out[key])
 
 
-def _load_state(path: str | Path) -> dict:
-    state = read_checkpoint(path)
-    if state.get("kind") != STATE_KIND:
-        raise ValueError(f"{path} is not a sampler training checkpoint (use last.pt or epoch_*.pt)")
-    return state
+def draw_generator(seed: int, ctx: DistContext, state: dict | None, epoch: int) -> torch.Generator:
+    """This rank's hypothesis-draw generator: :func:`draw_seed` of a fresh run, or the rank's state in a
+    resumed run's ``draw_rngs`` (a rank the checkpoint has no state for, resumed on more processes than it
+    was written by, starts the fresh stream of its rank and the resume epoch)."""
+    gen = torch.Generator().manual_seed(draw_seed(seed, ctx.rank))  # rank 0: seed + 1
+    if state is not None:
+        draw_rngs = state.get("draw_rngs") or [state["draw_rng"]]  # older checkpoints: rank 0's only
+        if ctx.rank < len(draw_rngs):
+            gen.set_state(draw_rngs[ctx.rank])
+        else:
+            gen.manual_seed(draw_seed(seed, ctx.rank, epoch))
+    return gen
 
 
-class _Run:
-    """The state of one training process: data, net, optimizer, generators, log."""
+def draw_states(gen: torch.Generator, ctx: DistContext) -> dict:
+    """The training-state entries of the draw generators: every rank's (``draw_rngs``, a collective) and
+    rank 0's (``draw_rng``, as single-process checkpoints hold it)."""
+    return {"draw_rng": gen.get_state(), "draw_rngs": ctx.gather(gen.get_state())}
 
-    def __init__(self, ctx: DistContext, cfg, data, out_dir: Path, net_cfg, fit: FitConfig, state, emit):
-        self.ctx, self.cfg, self.fit, self.data, self.out_dir, self.emit = ctx, cfg, fit, data, out_dir, emit
-        self.device = torch.device(cfg.device)
-        if ctx.active and self.device.type == "cuda":
-            self.device = torch.device("cuda", ctx.local_rank)  # one GPU per process on the node
-        train_frames, val_frames, self.split_note = dataset_splits(data)
+
+class SamplerJob(TrainingJob):
+    """Training of the sampling-weight network as a job of :func:`~cuboidcli.learn.trainer.run_job`:
+    epoch-based, B scenes a step split over the ranks, validated after every epoch."""
+
+    name = "sampler"
+    state_kind = STATE_KIND
+    rate_key = "scenes_per_s"
+
+    def __init__(self, cfg: SamplerTrainConfig, data, net_cfg: SamplerNetConfig | None, fit: FitConfig):
+        self.cfg, self.data, self.net_cfg, self.fit = cfg, data, net_cfg, fit
+
+    def setup(self, run: Run, state: dict | None) -> None:
+        cfg, fit = self.cfg, self.fit
+        train_frames, val_frames, self.split_note = dataset_splits(self.data)
         self.scenes = prepare_scenes(train_frames, cfg.grid_step, fit.min_set, cfg.workers)
         if not self.scenes:
             raise ValueError(
-                f"no usable training frames in {data} (each needs >= {fit.min_set} valid points)"
+                f"no usable training frames in {self.data} (each needs >= {fit.min_set} valid points)"
             )
         self.val_frames = val_frames[: cfg.val_frames] if cfg.val_frames is not None else val_frames
         if state is None:
             mean_m, std_m = depth_statistics(self.scenes)
-            net_cfg = replace(net_cfg or SamplerNetConfig(), depth_mean_m=mean_m, depth_std_m=std_m)
-        self.net_cfg = net_cfg
-        torch.manual_seed(cfg.seed)
-        self.net = SamplerNet(net_cfg).to(self.device).train()
-        self.opt = torch.optim.Adam(self.net.parameters(), lr=cfg.lr)
-        self.gen = torch.Generator().manual_seed(draw_seed(cfg.seed, ctx.rank))  # the hypothesis draws
+            self.net_cfg = replace(self.net_cfg or SamplerNetConfig(), depth_mean_m=mean_m, depth_std_m=std_m)
+        self.net = SamplerNet(self.net_cfg).to(run.device).train()
+        if state is not None:
+            self.net.load_state_dict(state["state_dict"])
+        self.optimizer = torch.optim.Adam(self.net.parameters(), lr=cfg.lr)
+        self.gen = draw_generator(cfg.seed, run.ctx, state, run.epoch)
         self.solver = NumericalSolver(
             SizeBounds(fit.a_min, fit.a_max), lr=fit.solver_lr, iters=fit.solver_iters
         )
-        self.epoch, self.best, self.step = 0, -math.inf, 0
-        if state is not None:
-            self.net.load_state_dict(state["state_dict"])
-            self.opt.load_state_dict(state["optimizer"])
-            # Nothing draws from the global RNG during training (the draws and the frame order have seeded
-            # generators of their own), so rank 0's saved state serves every rank.
-            torch.set_rng_state(state["torch_rng"])
-            self.epoch, self.best, self.step = int(state["epoch"]), float(state["best"]), int(state["step"])
-            draw_rngs = state.get("draw_rngs") or [state["draw_rng"]]  # older checkpoints: rank 0's only
-            if ctx.rank < len(draw_rngs):
-                self.gen.set_state(draw_rngs[ctx.rank])
-            else:  # resumed on more processes than the checkpoint was written by
-                self.gen.manual_seed(draw_seed(cfg.seed, ctx.rank, self.epoch))
-        if ctx.active:
-            # A collective check that every rank sees the same data, net and (resumed) weights: ranks that
-            # differ here would train replicas that silently drift apart.
-            mine = (
-                state_sha256(self.net.state_dict()),
-                self.net_cfg.to_dict(),
-                [s.name for s in self.scenes],
-                [f.name for f in self.val_frames],
-            )
-            if any(other != mine for other in ctx.gather(mine)):
-                raise ValueError(
-                    "the processes disagree on the training data, the net or its weights: every rank must "
-                    "read the same dataset folder (and --resume checkpoint)"
-                )
 
-    def log(self, record: dict) -> None:
-        if not self.ctx.is_main:
-            return
-        with (self.out_dir / "log.jsonl").open("a", encoding="utf-8") as f:
-            f.write(json.dumps(record) + "\n")
-        self.emit(record)
-
-    def train_epoch(self) -> dict:
-        """One epoch of Adam steps over B scenes each; returns the mean of the per-instance records.
-
-        Under DDP this rank trains its share of each step's scenes; the records are those of all ranks."""
-        cfg, ctx = self.cfg, self.ctx
-        lp = cfg.loss_params(self.fit, self.epoch)
-        order = epoch_order(len(self.scenes), self.epoch, cfg.seed, cfg.scenes_per_epoch)
-        step_means = []
-        for b in range(0, len(order), cfg.batch):
-            t_step = time.perf_counter()
-            batch = order[b : b + cfg.batch]
-            self.opt.zero_grad(set_to_none=True)
-            records = []
-            # The mean over the step's scenes and instances, on all ranks together: the sum over the ranks
-            # of these partial gradients is the gradient of the global batch.
-            scale = 1.0 / (len(batch) * cfg.instances)
-            for i in ctx.share(batch):
-                records += train_scene(
-                    self.net, self.scenes[i].prep, self.solver, lp, cfg.instances, self.gen, scale
-                )
-            ctx.sum_gradients(self.net.parameters())
-            self.opt.step()
-            self.step += 1
-            records = [r for shard in ctx.gather(records) for r in shard]  # in scene order per rank
-            step_means.append(_mean_records(records))
-            self.log(
-                {
-                    "event": "step",
-                    "epoch": self.epoch + 1,
-                    "step": self.step,
-                    "tau_c_sq_m2": lp.tau_c_sq_m2,
-                    "scenes": [self.scenes[i].name for i in batch],
-                    **step_means[-1],
-                    "seconds": time.perf_counter() - t_step,
-                }
-            )
-        self.epoch += 1
-        return _mean_records(step_means)
-
-    def validate(self, initial: bool = False) -> tuple[bool, dict]:
-        """Validate; returns (new best?, record). Without val frames the latest weights count as best."""
-        if not self.val_frames:
-            return not initial, {}
-        metrics, key, value = validate(self.net, self.val_frames, self.fit, self.cfg, self.ctx)
-        improved = not initial and value > self.best
-        if not initial:
-            self.best = max(self.best, value)
-        record = {"key": key, **metrics}
-        tag = {"initial": True} if initial else {"best": improved}
-        self.log({"event": "val", "epoch": self.epoch, **tag, **record})
-        return improved, record
-
-    def save(self, improved: bool, val_record: dict) -> None:
-        """Training state to last.pt and epoch_XXX.pt; the weights to sampler_v2.pt if they are the best.
-
-        A collective (every rank's draw generator state goes into the checkpoint); rank 0 writes."""
+    def batches(self, run: Run):
         cfg = self.cfg
-        draw_rngs = self.ctx.gather(self.gen.get_state())
-        if not self.ctx.is_main:
-            return
-        blob = {
-            "kind": STATE_KIND,
+        self.lp = cfg.loss_params(self.fit, run.epoch)
+        return batched(epoch_order(len(self.scenes), run.epoch, cfg.seed, cfg.scenes_per_epoch), cfg.batch)
+
+    def step(self, run: Run, batch: list[int]) -> StepResult:
+        """B scenes; under DDP this rank trains its share of them, the records are those of all ranks."""
+        cfg, lp = self.cfg, self.lp
+        # The mean over the step's scenes and instances, on all ranks together: the sum over the ranks of
+        # these partial gradients is the gradient of the global batch.
+        scale = 1.0 / (len(batch) * cfg.instances)
+
+        def one(i: int) -> list[dict]:
+            return train_scene(self.net, self.scenes[i].prep, self.solver, lp, cfg.instances, self.gen, scale)
+
+        mean = shared_batch_step(run.ctx, self.optimizer, self.net.parameters(), batch, one)
+        names = [self.scenes[i].name for i in batch]
+        fields = {"epoch": run.epoch + 1, "tau_c_sq_m2": lp.tau_c_sq_m2, "scenes": names}
+        return StepResult(mean, fields, items=len(batch))
+
+    def validate(self, run: Run) -> Validation | None:
+        if not self.val_frames:
+            return None
+        metrics, key, value = validate(self.net, self.val_frames, self.fit, self.cfg, run.ctx)
+        return Validation(value, {"key": key, **metrics})
+
+    def state(self, run: Run) -> dict:
+        return {
             "config": self.net_cfg.to_dict(),
             "state_dict": self.net.state_dict(),
-            "optimizer": self.opt.state_dict(),
-            "torch_rng": torch.get_rng_state(),
-            "draw_rng": self.gen.get_state(),
-            "draw_rngs": draw_rngs,
-            "world_size": self.ctx.world_size,
-            "epoch": self.epoch,
-            "step": self.step,
-            "best": self.best,
-            "train_config": asdict(cfg),
+            **draw_states(self.gen, run.ctx),
+            "train_config": asdict(self.cfg),
             "fit_config": self.fit.to_dict(),
         }
-        atomic_torch_save(blob, self.out_dir / "last.pt")
-        atomic_torch_save(blob, self.out_dir / f"epoch_{self.epoch:03d}.pt")
-        snapshots = sorted(self.out_dir.glob("epoch_*.pt"))
-        for old in snapshots[: max(len(snapshots) - cfg.keep_snapshots, 0)]:
-            old.unlink()
-        if improved:
-            meta = {
-                "epoch": self.epoch,
-                "val": val_record,
-                "train_config": asdict(cfg),
-                "fit_config": self.fit.to_dict(),
-                "data": str(self.data),
-            }
-            atomic_torch_save(checkpoint_dict(self.net, meta), self.out_dir / FILES["sampler"])
+
+    def networks(self) -> dict[str, torch.nn.Module]:
+        return {"sampler": self.net}
+
+    def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
+        meta = {
+            "epoch": run.epoch,
+            "val": validation,
+            "train_config": asdict(self.cfg),
+            "fit_config": self.fit.to_dict(),
+            "data": str(self.data),
+        }
+        return {FILES["sampler"]: checkpoint_dict(self.net, meta)}
+
+    def settings(self, run: Run) -> dict:
+        return {
+            "train": asdict(self.cfg),
+            "net": self.net_cfg.to_dict(),
+            "fit": self.fit.to_dict(),
+            "data": str(self.data),
+            **self._frames(),
+        }
+
+    def _frames(self) -> dict:
+        frames = {"train_frames": len(self.scenes), "val_frames": len(self.val_frames)}
+        return {"split": self.split_note, **frames}
+
+    def start_fields(self, run: Run) -> dict:
+        return self._frames()
+
+    def end_fields(self, run: Run) -> dict:
+        return {"epochs_done": run.epoch, "best": run.best, "weights": str(run.out_dir / FILES["sampler"])}
+
+    def agreement(self) -> object:
+        return (self.net_cfg.to_dict(), [s.name for s in self.scenes], [f.name for f in self.val_frames])
+
+
+#: Fields of the caller's config that replace the checkpoint's when resuming.
+RESUME_OVERRIDES = ("epochs", "threads", "device", "workers", "max_minutes", "keep_snapshots")
 
 
 def train_sampler(
@@ -439,103 +411,36 @@ def train_sampler(
     """Run (or resume) training; returns the final record (epochs done, best value, paths).
 
     When resuming, the schedule, the net shape and the fitting settings come from the checkpoint; only
-    ``epochs`` (extending the run also stretches the tau_c schedule), ``threads``, ``device``,
-    ``workers``, ``max_minutes`` and ``keep_snapshots`` of ``cfg`` apply. ``stop_after_epoch`` ends the
-    run after that many completed epochs (as an interruption would). torch's thread count is set to
-    ``cfg.threads`` for the run and restored afterwards.
+    the fields of ``cfg`` in :data:`RESUME_OVERRIDES` apply (extending ``epochs`` also stretches the tau_c
+    schedule). ``stop_after_epoch`` ends the run after that many completed epochs (as an interruption
+    would). torch's thread count is set to ``cfg.threads`` for the run and restored afterwards.
 
     Launched by ``torchrun`` with ``WORLD_SIZE > 1``, this joins the process group for the duration of
     the call (``backend``: None = nccl on CUDA, gloo on CPU, or ``$CUBOIDS_DIST_BACKEND``) and trains data
     parallel as the module docstring describes; every rank must pass the same arguments. Only rank 0
     calls ``on_event`` and writes to ``out_dir``, which must be visible to every rank for ``resume``.
-    The final record then adds ``world_size`` and ``param_sha256``, one hash of the final weights per
-    rank, all equal when the replicas stayed in sync.
+    The final record holds ``world_size`` and ``param_sha256``, one hash of the final weights per rank,
+    all equal when the replicas stayed in sync.
     """
-    out_dir = Path(out_dir)
     fit = fit or FitConfig()
     state = None
     if resume is not None:
-        state = _load_state(resume)
-        keep = ("epochs", "threads", "device", "workers", "max_minutes", "keep_snapshots")
-        cfg = replace(SamplerTrainConfig(**state["train_config"]), **{k: getattr(cfg, k) for k in keep})
+        state = read_state(resume, STATE_KIND, "sampler training", "last.pt or epoch_*.pt")
+        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
         net_cfg = SamplerNetConfig.from_dict(state["config"])
         fit = FitConfig(**state["fit_config"])
-    threads_before = torch.get_num_threads()
-    torch.set_num_threads(cfg.threads)
-    try:
-        with distributed(cfg.device, backend) as ctx:
-            if ctx.is_main:
-                out_dir.mkdir(parents=True, exist_ok=True)
-            emit = (on_event if ctx.is_main else None) or (lambda record: None)
-            return _train(ctx, cfg, data, out_dir, net_cfg, fit, state, resume, emit, stop_after_epoch)
-    finally:
-        torch.set_num_threads(threads_before)
-
-
-def _train(ctx, cfg, data, out_dir, net_cfg, fit, state, resume, emit, stop_after_epoch) -> dict:
-    t_start = time.perf_counter()
-    run = _Run(ctx, cfg, data, out_dir, net_cfg, fit, state, emit)
-    resolved = {
-        "train": asdict(cfg),
-        "net": run.net_cfg.to_dict(),
-        "fit": fit.to_dict(),
-        "data": str(data),
-        "split": run.split_note,
-        "train_frames": len(run.scenes),
-        "val_frames": len(run.val_frames),
-        "resumed_from": None if resume is None else str(resume),
-    }
-    start = {
-        "event": "start",
-        "epoch": run.epoch,
-        "epochs": cfg.epochs,
-        "parameters": parameter_count(run.net),
-        "train_frames": len(run.scenes),
-        "val_frames": len(run.val_frames),
-        "split": run.split_note,
-    }
-    if ctx.active:
-        resolved["distributed"] = {"world_size": ctx.world_size, "backend": ctx.backend}
-        start["world_size"] = ctx.world_size
-    if ctx.is_main:
-        atomic_write_json(out_dir / "config.json", resolved)
-    run.log(start)
-    if state is None and cfg.validate_initial:
-        run.validate(initial=True)
-    while run.epoch < cfg.epochs:
-        t_epoch = time.perf_counter()
-        summary = run.train_epoch()
-        improved, val_record = run.validate()
-        run.save(improved, val_record)
-        run.log(
-            {
-                "event": "epoch",
-                "epoch": run.epoch,
-                **summary,
-                "best": improved,
-                "seconds": time.perf_counter() - t_epoch,
-            }
-        )
-        if stop_after_epoch is not None and run.epoch >= stop_after_epoch:
-            break
-        if cfg.max_minutes is not None:
-            # Rank 0's clock decides for every rank: ranks that disagree would deadlock in the next step.
-            over = time.perf_counter() - t_start > 60.0 * cfg.max_minutes
-            if ctx.broadcast_float(float(over)) > 0.5:
-                run.log({"event": "stop", "epoch": run.epoch, "reason": "max_minutes"})
-                break
-    final = {
-        "event": "end",
-        "epochs_done": run.epoch,
-        "best": run.best,
-        "weights": str(out_dir / FILES["sampler"]),
-        "last": str(out_dir / "last.pt"),
-        "seconds": time.perf_counter() - t_start,
-    }
-    if ctx.active:
-        final["world_size"] = ctx.world_size
-        final["param_sha256"] = ctx.gather(state_sha256(run.net.state_dict()))
-    run.log(final)
-    # Rank 0 finishes its files before any rank tears the process group down.
-    ctx.barrier()
-    return final
+    run = RunConfig(
+        Path(out_dir),
+        seed=cfg.seed,
+        max_epochs=cfg.epochs,
+        max_minutes=cfg.max_minutes,
+        keep_snapshots=cfg.keep_snapshots,
+        snapshot_name="epoch_{epoch:03d}.pt",
+        validate_initial=cfg.validate_initial,
+        stop_after_epochs=stop_after_epoch,
+        resume=None if resume is None else Path(resume),
+        threads=cfg.threads,
+        device=cfg.device,
+        backend=backend,
+    )
+    return run_job(SamplerJob(cfg, data, net_cfg, fit), run, state, on_event)

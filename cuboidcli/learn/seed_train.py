@@ -19,7 +19,6 @@ REINFORCE on sets of 32 hypotheses.
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
@@ -33,14 +32,26 @@ from cuboidcli.fitting.pipeline import PreparedPoints
 from cuboidcli.fitting.scoring import ScoreParams, gains_cpu
 from cuboidcli.fitting.winner import values_one
 from cuboidcli.geometry.kernels import combine
-from cuboidcli.io.atomic import atomic_torch_save
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, prepare_scenes
+from cuboidcli.learn.trainer import (
+    Run,
+    RunConfig,
+    StepResult,
+    TrainingJob,
+    read_state,
+    resumed_config,
+    run_job,
+)
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext, SequentialSampler, draw_hypotheses
 from cuboidcli.sampling.learned import grid_inputs
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver
+
+STATE_KIND = "seed-train-state"
+#: The weights file it writes.
+WEIGHTS = "sampler_v3.pt"
 
 
 @dataclass(frozen=True)
@@ -116,35 +127,34 @@ def record_loss(net: SamplerNet, prep: PreparedPoints, rec: SeedRecord, kappa: f
     return -(target * log_p).sum() + (target * torch.log(target.clamp_min(1e-30))).sum()  # KL(T || p)
 
 
-def train_seed_sampler(
-    data: str | Path,
-    out_dir: str | Path,
-    cfg: SeedTrainConfig,
-    fit: FitConfig | None = None,
-    on_event: Callable[[dict], None] | None = None,
-) -> Path:
-    """Record seed scores on the training scenes, train the one-map network, write
-    ``out_dir/sampler_v3.pt`` (weights) and ``log.jsonl``. Returns the weights path."""
-    fit = fit or FitConfig()
-    emit = on_event or (lambda e: None)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    torch.manual_seed(cfg.seed)
-    train, val, how = dataset_splits(data)
-    if cfg.scenes is not None:
-        train = train[: cfg.scenes]
-    scenes = prepare_scenes(train, fit.grid_step, fit.min_set * 10)
-    mean, std = depth_statistics(scenes)
-    gen = torch.Generator().manual_seed(cfg.seed + 1)
-    t0 = time.perf_counter()
-    records: list[SeedRecord] = []
-    for i, s in enumerate(scenes):
-        records += scene_records(s.prep, i, fit, cfg, gen)
-        if (i + 1) % 20 == 0:
-            emit({"event": "records", "scenes": i + 1, "records": len(records)})
-    emit({"event": "records_done", "records": len(records), "seconds": time.perf_counter() - t0})
-    net = SamplerNet(
-        SamplerNetConfig(
+class SeedJob(TrainingJob):
+    """The first-point map's training as a job of :func:`~cuboidcli.learn.trainer.run_job`: the seed scores
+    are recorded in :meth:`setup` (again when resuming: they depend only on the seed), then each epoch
+    visits every record once in a seeded random order. No validation: every epoch's weights are kept."""
+
+    name = "seed"
+    state_kind = STATE_KIND
+    distributed = False
+
+    def __init__(self, cfg: SeedTrainConfig, data: str | Path, fit: FitConfig):
+        self.cfg, self.data, self.fit = cfg, data, fit
+
+    def setup(self, run: Run, state: dict | None) -> None:
+        cfg, fit = self.cfg, self.fit
+        train, _, self.split = dataset_splits(self.data)
+        if cfg.scenes is not None:
+            train = train[: cfg.scenes]
+        self.scenes = prepare_scenes(train, fit.grid_step, fit.min_set * 10)
+        mean, std = depth_statistics(self.scenes)
+        gen = torch.Generator().manual_seed(cfg.seed + 1)
+        t0 = time.perf_counter()
+        self.records: list[SeedRecord] = []
+        for i, s in enumerate(self.scenes):
+            self.records += scene_records(s.prep, i, fit, cfg, gen)
+            if (i + 1) % 20 == 0:
+                run.emit({"event": "records", "scenes": i + 1, "records": len(self.records)})
+        run.emit({"event": "records_done", "records": len(self.records), "seconds": time.perf_counter() - t0})
+        self.net_cfg = SamplerNetConfig(
             maps=1,
             width=cfg.width,
             blocks=cfg.blocks,
@@ -153,42 +163,92 @@ def train_seed_sampler(
             depth_mean_m=mean,
             depth_std_m=std,
         )
-    )
-    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr)
-    log = (out / "log.jsonl").open("w", encoding="utf-8")
-    order_gen = torch.Generator().manual_seed(cfg.seed + 2)
-    stop = False
-    for epoch in range(cfg.epochs):
-        net.train()
-        losses = []
-        for j in torch.randperm(len(records), generator=order_gen).tolist():
-            rec = records[j]
-            loss = record_loss(net, scenes[rec.scene].prep, rec, cfg.kappa)
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            losses.append(float(loss.detach()))
-            if cfg.max_minutes is not None and time.perf_counter() - t0 > 60 * cfg.max_minutes:
-                stop = True
-                break
-        event = {
-            "event": "epoch",
-            "epoch": epoch,
-            "kl": float(np.mean(losses)),
-            "minutes": (time.perf_counter() - t0) / 60,
+        self.net = SamplerNet(self.net_cfg)
+        self.optimizer = torch.optim.Adam(self.net.parameters(), lr=cfg.lr)
+        self.order_gen = torch.Generator().manual_seed(cfg.seed + 2)
+        if state is not None:
+            self.net.load_state_dict(state["state_dict"])
+            self.order_gen.set_state(state["order_rng"])
+
+    def batches(self, run: Run):
+        self.net.train()
+        return torch.randperm(len(self.records), generator=self.order_gen).tolist()
+
+    def step(self, run: Run, j: int) -> StepResult:
+        rec = self.records[j]
+        loss = record_loss(self.net, self.scenes[rec.scene].prep, rec, self.cfg.kappa)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        self.optimizer.step()
+        return StepResult({"kl": float(loss.detach())})
+
+    def validate(self, run: Run) -> None:
+        return None
+
+    def state(self, run: Run) -> dict:
+        return {
+            "config": self.net_cfg.to_dict(),
+            "state_dict": self.net.state_dict(),
+            "order_rng": self.order_gen.get_state(),
+            "train_config": asdict(self.cfg),
+            "fit_config": self.fit.to_dict(),
         }
-        log.write(json.dumps(event) + "\n")
-        log.flush()
-        emit(event)
+
+    def networks(self) -> dict[str, torch.nn.Module]:
+        return {"sampler": self.net}
+
+    def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
         meta = {
             "trainer": "seed",
-            "config": asdict(cfg),
-            "epochs_done": epoch + 1,
-            "data": str(data),
-            "split": how,
+            "config": asdict(self.cfg),
+            "epochs_done": run.epoch,
+            "data": str(self.data),
+            "split": self.split,
         }
-        atomic_torch_save(checkpoint_dict(net.eval(), meta), out / "sampler_v3.pt")
-        if stop:
-            break
-    log.close()
-    return out / "sampler_v3.pt"
+        return {WEIGHTS: checkpoint_dict(self.net, meta)}
+
+    def settings(self, run: Run) -> dict:
+        data = {"data": str(self.data), "split": self.split}
+        return {"train": asdict(self.cfg), "fit": self.fit.to_dict(), **data}
+
+    def start_fields(self, run: Run) -> dict:
+        return {"scenes": len(self.scenes), "records": len(self.records)}
+
+    def end_fields(self, run: Run) -> dict:
+        return {"weights": str(run.out_dir / WEIGHTS)}
+
+
+#: Fields of the caller's config that replace the checkpoint's when resuming.
+RESUME_OVERRIDES = ("epochs", "max_minutes")
+
+
+def train_seed_sampler(
+    data: str | Path,
+    out_dir: str | Path,
+    cfg: SeedTrainConfig,
+    fit: FitConfig | None = None,
+    on_event: Callable[[dict], None] | None = None,
+    resume: str | Path | None = None,
+) -> Path:
+    """Record seed scores on the training scenes, train the one-map network, write
+    ``out_dir/sampler_v3.pt`` (the weights, after every epoch), ``last.pt`` and ``log.jsonl``. Returns the
+    weights path. ``resume``: a ``last.pt`` of this trainer; its settings apply except ``epochs`` and
+    ``max_minutes`` of ``cfg``. ``max_minutes`` counts from the start, the recording included."""
+    fit = fit or FitConfig()
+    state = None
+    if resume is not None:
+        state = read_state(resume, STATE_KIND, "seed-sampler training")
+        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
+        fit = FitConfig(**state["fit_config"])
+    run = RunConfig(
+        Path(out_dir),
+        seed=cfg.seed,
+        max_epochs=cfg.epochs,
+        max_minutes=cfg.max_minutes,
+        stop_within_epoch=True,
+        log_every=None,
+        resume=None if resume is None else Path(resume),
+        threads=None,
+    )
+    run_job(SeedJob(cfg, data, fit), run, state, on_event)
+    return Path(out_dir) / WEIGHTS

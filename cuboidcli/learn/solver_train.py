@@ -8,7 +8,9 @@ warm-up and a cosine decay, gradient-norm clipping.
 
 Files in ``out_dir``: ``config.json`` (resolved configs), ``log.jsonl`` (one record per log / validation
 event), ``last.pt`` and ``step_XXXXXXX.pt`` (training state: weights, optimizer, RNG, iteration; the last
-``keep_snapshots`` are kept) and ``best.pt`` (weights-only, the lowest validation residual so far).
+``keep_snapshots`` are kept) and ``best.pt`` (weights-only, the lowest validation residual so far; the same
+file as ``solver_v2.pt`` too, the name ``--weights OUT`` reads). The loop is
+:func:`cuboidcli.learn.trainer.run_job`'s (:class:`SolverJob`).
 This module prints nothing: progress goes to the ``on_event`` callback.
 
 Multi-process (``torchrun``, see :mod:`cuboidcli.learn.distributed`): every rank holds a replica wrapped in
@@ -21,25 +23,37 @@ from its clock (the time budget) are broadcast so that all ranks change lr and s
 
 from __future__ import annotations
 
-import json
-import math
+import itertools
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import torch
 from torch import Tensor
 
 from cuboidcli.geometry.kernels import cuboid_sq_distance
-from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import read_checkpoint
-from cuboidcli.learn.distributed import DistContext, distributed, state_sha256
+from cuboidcli.learn.trainer import (
+    Run,
+    RunConfig,
+    StepResult,
+    TrainingJob,
+    Validation,
+    read_state,
+    resumed_config,
+    run_job,
+    warmup_cosine_lr,
+)
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
 from cuboidcli.nets.solver import SolverNet, SolverNetConfig
 from cuboidcli.solvers.synthetic import SyntheticBatch, SyntheticConfig, seeded_batch
-from cuboidcli.weights import default_path
+from cuboidcli.weights import FILES, default_path
 
+STATE_KIND = "solver-train-state"
+#: The best weights (lowest validation residual), a plain weights file; written under the name of the solver
+#: in a weights folder (``solver_v2.pt``) as well.
+BEST = "best.pt"
 #: Seeds of the held-out validation sets live far from the training seeds (seed * 2^32 + iteration).
 VAL_SEED = 2**62 + 2024
 #: Rank r > 0 offsets its training seeds by r * RANK_SEED_STRIDE: rank 0 keeps the single-process stream,
@@ -109,12 +123,7 @@ def lr_at(it: int, cfg: SolverTrainConfig, time_fraction: float = 0.0) -> float:
 
     ``time_fraction``: share of the time budget used so far; the decay follows it when it runs ahead.
     """
-    if it < cfg.warmup:
-        return cfg.lr * (it + 1) / cfg.warmup
-    span = max(1, cfg.iters - cfg.warmup)
-    progress = min(1.0, max((it - cfg.warmup) / span, time_fraction))
-    cosine = 0.5 * (1.0 + math.cos(math.pi * progress))
-    return cfg.lr * (cfg.final_lr_ratio + (1.0 - cfg.final_lr_ratio) * cosine)
+    return warmup_cosine_lr(it, cfg.iters, cfg.lr, cfg.warmup, cfg.final_lr_ratio, time_fraction)
 
 
 def validation_sets(n: int, data: SyntheticConfig) -> dict[str, SyntheticBatch]:
@@ -147,22 +156,111 @@ def _net_solver(net: SolverNet) -> Callable:
     return NeuralSolver(net=net, device=next(net.parameters()).device)
 
 
-def _train_state(
-    net, opt, it: int, best: float, elapsed_s: float, cfg, net_cfg, data_cfg, world: int
-) -> dict:
-    return {
-        "kind": "solver-train-state",
-        "config": net_cfg.to_dict(),
-        "state_dict": net.state_dict(),
-        "optimizer": opt.state_dict(),
-        "rng": torch.get_rng_state(),
-        "iteration": it,
-        "best_msd_m2": best,
-        "elapsed_s": elapsed_s,
-        "train_config": asdict(cfg),
-        "data_config": data_cfg.to_dict(),
-        "world_size": world,
-    }
+class SolverJob(TrainingJob):
+    """Pre-training of the neural solver as a job of :func:`~cuboidcli.learn.trainer.run_job`: step-based,
+    one synthetic batch a step; rank 0 alone validates (on the fixed held-out sets)."""
+
+    name = "solver"
+    state_kind = STATE_KIND
+    step_event = "train"
+    end_event = "done"
+    rate_key = "sets_per_s"
+    lower_is_better = True
+
+    def __init__(self, cfg: SolverTrainConfig, net_cfg: SolverNetConfig, data_cfg: SyntheticConfig):
+        self.cfg, self.net_cfg, self.data_cfg = cfg, net_cfg, data_cfg
+
+    def setup(self, run: Run, state: dict | None) -> None:
+        ctx, device = run.ctx, run.device
+        # Same seed on every rank (run_job seeded it), so the replicas start equal even before DDP
+        # broadcasts rank 0's weights.
+        self.net = SolverNet(self.net_cfg).to(device)
+        if state is not None:
+            self.net.load_state_dict(state["state_dict"])
+        # ``model`` is what the loss calls: DDP all-reduces (averages) the gradients during backward, so
+        # every rank clips and steps with the same gradient. Validation and checkpoints use the bare net.
+        self.model = self.net
+        if ctx.active:
+            from torch.nn.parallel import DistributedDataParallel
+
+            device_ids = [device.index] if device.type == "cuda" else None
+            self.model = DistributedDataParallel(self.net, device_ids=device_ids)
+        self.optimizer = torch.optim.Adam(self.net.parameters(), lr=lr_at(0, self.cfg))
+        # Only rank 0 validates; the others wait for it in the next collective.
+        self.val = validation_sets(self.cfg.val_sets, self.data_cfg) if ctx.is_main else {}
+        self.net.train()
+
+    def batches(self, run: Run):
+        return itertools.count(run.step)
+
+    def step(self, run: Run, it: int) -> StepResult:
+        cfg = self.cfg
+        batch = seeded_batch(cfg.batch, self.data_cfg, batch_seed(cfg.seed, it, run.ctx.rank))
+        points, inlier = batch.points.to(run.device), batch.inlier.to(run.device)
+        lr = lr_at(it, cfg, run.time_fraction())
+        for group in self.optimizer.param_groups:
+            group["lr"] = lr
+        loss = solver_loss(self.model, points, inlier)
+        self.optimizer.zero_grad(set_to_none=True)
+        loss.backward()
+        grad_norm = torch.nn.utils.clip_grad_norm_(self.net.parameters(), cfg.grad_clip)
+        self.optimizer.step()
+        # A collective: the loss of the global batch, on every rank
+        loss_m2 = run.ctx.mean_float(loss.item())
+        fields = {"iteration": it + 1, "lr": lr, "grad_norm": float(grad_norm)}
+        return StepResult({"loss_m2": loss_m2}, fields, items=cfg.batch * run.ctx.world_size)
+
+    def validate(self, run: Run) -> Validation | None:
+        if not run.ctx.is_main:
+            return None
+        self.net.eval()
+        self.metrics = {name: evaluate_solver(_net_solver(self.net), b) for name, b in self.val.items()}
+        self.net.train()
+        flat = {f"{k}_{m}": v for k, ms in self.metrics.items() for m, v in ms.items()}
+        return Validation(self.metrics["noisy"]["msd_m2"], {"iteration": run.step, **flat})
+
+    def state(self, run: Run) -> dict:
+        return {
+            "config": self.net_cfg.to_dict(),
+            "state_dict": self.net.state_dict(),
+            "train_config": asdict(self.cfg),
+            "data_config": self.data_cfg.to_dict(),
+        }
+
+    def networks(self) -> dict[str, torch.nn.Module]:
+        return {"solver": self.net}
+
+    def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
+        meta = {
+            "iteration": run.step,
+            "validation": self.metrics,
+            "parameters": parameter_count(self.net),
+            "train_config": asdict(self.cfg),
+            "data_config": self.data_cfg.to_dict(),
+        }
+        weights = checkpoint_dict(self.net, meta)
+        return {BEST: weights, FILES["solver"]: weights}
+
+    def settings(self, run: Run) -> dict:
+        return {"train": asdict(self.cfg), "net": self.net_cfg.to_dict(), "data": self.data_cfg.to_dict()}
+
+    def start_fields(self, run: Run) -> dict:
+        return {"iteration": run.step, "iters": self.cfg.iters}
+
+    def end_fields(self, run: Run) -> dict:
+        return {"iteration": run.step, "best_noisy_msd_m2": run.best, "best": str(run.out_dir / BEST)}
+
+
+#: Fields of the caller's config that replace the checkpoint's when resuming.
+RESUME_OVERRIDES = (
+    "threads",
+    "device",
+    "max_minutes",
+    "log_every",
+    "val_every",
+    "ckpt_every",
+    "keep_snapshots",
+)
 
 
 def train_solver(
@@ -179,192 +277,38 @@ def train_solver(
     Exactly reproducible from ``cfg.seed`` (and the number of processes) unless a time budget
     (``max_minutes``) shapes the schedule.
 
-    When resuming, the schedule, data and net shape come from the checkpoint; only ``threads``,
-    ``device``, ``max_minutes`` and the logging intervals of ``cfg`` apply.
+    When resuming, the schedule, data and net shape come from the checkpoint; only the fields of ``cfg``
+    in :data:`RESUME_OVERRIDES` (threads, device, time budget, logging and checkpoint intervals) apply.
 
     Launched by ``torchrun`` with ``WORLD_SIZE > 1``, this joins the process group for the duration of
     the call (``backend``: None = nccl on CUDA, gloo on CPU, or ``$CUBOIDS_DIST_BACKEND``); only rank 0
     calls ``on_event`` and writes to ``out_dir``, which must then be visible to every rank (resume reads
-    it on all of them). The final record adds ``world_size`` and ``param_sha256``, one hash of the final
+    it on all of them). The final record holds ``world_size`` and ``param_sha256``, one hash of the final
     weights per rank, all equal when the replicas stayed in sync.
     """
-    with distributed(cfg.device, backend) as ctx:
-        return _train(ctx, cfg, net_cfg, Path(out_dir), data_cfg, resume, on_event)
-
-
-def _train(
-    ctx: DistContext,
-    cfg: SolverTrainConfig,
-    net_cfg: SolverNetConfig,
-    out_dir: Path,
-    data_cfg: SyntheticConfig | None,
-    resume: str | Path | None,
-    on_event: Callable[[dict], None] | None,
-) -> dict:
-    if ctx.is_main:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    emit = (on_event if ctx.is_main else None) or (lambda record: None)
     state = None
     if resume is not None:
-        state = read_checkpoint(resume)
-        if state.get("kind") != "solver-train-state":
-            raise ValueError(f"{resume} is not a training checkpoint (use last.pt or step_*.pt)")
-        keep = ("threads", "device", "max_minutes", "log_every", "val_every", "ckpt_every", "keep_snapshots")
-        cfg = replace(SolverTrainConfig(**state["train_config"]), **{k: getattr(cfg, k) for k in keep})
+        state = read_state(resume, STATE_KIND, "solver training", "last.pt or step_*.pt")
+        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
         net_cfg = SolverNetConfig.from_dict(state["config"])
         data_cfg = SyntheticConfig(**state["data_config"])
-    data_cfg = data_cfg or SyntheticConfig()
-    torch.set_num_threads(cfg.threads)
-    device = torch.device(cfg.device)
-    if ctx.active and device.type == "cuda":
-        device = torch.device("cuda", ctx.local_rank)  # one GPU per process on the node
-
-    # Same seed on every rank, so the replicas start equal even before DDP broadcasts rank 0's weights.
-    torch.manual_seed(cfg.seed)
-    net = SolverNet(net_cfg).to(device)
-    # ``model`` is what the loss calls: DDP all-reduces (averages) the gradients during backward, so every
-    # rank clips and steps with the same gradient. Validation and checkpoints use the bare ``net``.
-    model = net
-    if ctx.active:
-        from torch.nn.parallel import DistributedDataParallel
-
-        model = DistributedDataParallel(net, device_ids=[device.index] if device.type == "cuda" else None)
-    opt = torch.optim.Adam(net.parameters(), lr=lr_at(0, cfg))
-    start, best, spent_s = 0, math.inf, 0.0
-    if state is not None:
-        net.load_state_dict(state["state_dict"])
-        opt.load_state_dict(state["optimizer"])
-        # The global RNG draws nothing during training (batches come from seeded generators of their own,
-        # the net has no dropout), so rank 0's saved state serves every rank.
-        torch.set_rng_state(state["rng"])
-        start, best, spent_s = int(state["iteration"]), float(state["best_msd_m2"]), float(state["elapsed_s"])
-    resolved = {"train": asdict(cfg), "net": net_cfg.to_dict(), "data": data_cfg.to_dict()}
-    resolved["resumed_from"] = None if resume is None else str(resume)
-    if ctx.active:
-        resolved["distributed"] = {"world_size": ctx.world_size, "backend": ctx.backend}
-    if ctx.is_main:
-        atomic_write_json(out_dir / "config.json", resolved)
-    # Only rank 0 validates; the others wait for it in the next gradient all-reduce.
-    val = validation_sets(cfg.val_sets, data_cfg) if ctx.is_main else {}
-    log_path = out_dir / "log.jsonl"
-    n_params = parameter_count(net)
-    emit(
-        {
-            "event": "start",
-            "iteration": start,
-            "iters": cfg.iters,
-            "parameters": n_params,
-            "world_size": ctx.world_size,
-        }
+    run = RunConfig(
+        Path(out_dir),
+        seed=cfg.seed,
+        max_steps=cfg.iters,
+        max_minutes=cfg.max_minutes,
+        minutes_span_resumes=True,
+        log_every=cfg.log_every,
+        val_every=cfg.val_every,
+        save_every=cfg.ckpt_every,
+        keep_snapshots=cfg.keep_snapshots,
+        snapshot_name="step_{step:07d}.pt",
+        resume=None if resume is None else Path(resume),
+        threads=cfg.threads,
+        device=cfg.device,
+        backend=backend,
     )
-
-    def log(record: dict) -> None:
-        if not ctx.is_main:
-            return
-        with log_path.open("a", encoding="utf-8") as f:
-            f.write(json.dumps(record) + "\n")
-        emit(record)
-
-    def validate(it: int) -> dict:
-        net.eval()
-        metrics = {name: evaluate_solver(_net_solver(net), batch) for name, batch in val.items()}
-        net.train()
-        return metrics
-
-    def elapsed() -> float:
-        return spent_s + time.perf_counter() - t0
-
-    def time_fraction() -> float:
-        if cfg.max_minutes is None:
-            return 0.0
-        # Rank 0's clock rules: the lr and the stop decision derive from it and must agree on all ranks.
-        return ctx.broadcast_float(elapsed() / (60.0 * cfg.max_minutes))
-
-    def save_state(it: int) -> None:
-        if not ctx.is_main:
-            return
-        blob = _train_state(net, opt, it, best, elapsed(), cfg, net_cfg, data_cfg, ctx.world_size)
-        atomic_torch_save(blob, out_dir / f"step_{it:07d}.pt")
-        atomic_torch_save(blob, out_dir / "last.pt")
-        for old in sorted(out_dir.glob("step_*.pt"))[: -cfg.keep_snapshots]:
-            old.unlink(missing_ok=True)
-
-    t0 = time.perf_counter()
-    window_t, window_loss, window_n = time.perf_counter(), 0.0, 0
-    it = start
-    net.train()
-    while it < cfg.iters:
-        batch = seeded_batch(cfg.batch, data_cfg, batch_seed(cfg.seed, it, ctx.rank))
-        points, inlier = batch.points.to(device), batch.inlier.to(device)
-        for group in opt.param_groups:
-            group["lr"] = lr = lr_at(it, cfg, time_fraction())
-        loss = solver_loss(model, points, inlier)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), cfg.grad_clip)
-        opt.step()
-        it += 1
-        window_loss += loss.item()
-        window_n += 1
-        timed_out = time_fraction() >= 1.0
-        last = it == cfg.iters or timed_out
-        if it % cfg.log_every == 0 or last:
-            now = time.perf_counter()
-            log(
-                {
-                    "event": "train",
-                    "iteration": it,
-                    # A collective: every rank logs at the same steps, so all of them get here.
-                    "loss_m2": ctx.mean_float(window_loss / window_n),
-                    "lr": lr,
-                    "grad_norm": float(grad_norm),
-                    "sets_per_s": window_n * cfg.batch * ctx.world_size / max(now - window_t, 1e-9),
-                    "elapsed_s": elapsed(),
-                }
-            )
-            window_t, window_loss, window_n = now, 0.0, 0
-        if ctx.is_main and (it % cfg.val_every == 0 or last):
-            metrics = validate(it)
-            improved = metrics["noisy"]["msd_m2"] < best
-            if improved:
-                best = metrics["noisy"]["msd_m2"]
-                meta = {
-                    "iteration": it,
-                    "validation": metrics,
-                    "parameters": n_params,
-                    "train_config": asdict(cfg),
-                    "data_config": data_cfg.to_dict(),
-                }
-                atomic_torch_save(checkpoint_dict(net, meta), out_dir / "best.pt")
-            log(
-                {
-                    "event": "val",
-                    "iteration": it,
-                    "best": improved,
-                    "elapsed_s": elapsed(),
-                    **{f"{k}_{m}": v for k, ms in metrics.items() for m, v in ms.items()},
-                }
-            )
-            window_t = time.perf_counter()  # keep validation time out of the throughput
-        if it % cfg.ckpt_every == 0 or last:
-            save_state(it)
-        if timed_out:
-            break
-    final = {
-        "event": "done",
-        "iteration": it,
-        "best_noisy_msd_m2": best,
-        "timed_out": it < cfg.iters,
-        "elapsed_s": elapsed(),
-        "best": str(out_dir / "best.pt"),
-        "last": str(out_dir / "last.pt"),
-        "world_size": ctx.world_size,
-        "param_sha256": ctx.gather(state_sha256(net.state_dict())),
-    }
-    log(final)
-    # Rank 0 finishes its files before any rank tears the process group down.
-    ctx.barrier()
-    return final
+    return run_job(SolverJob(cfg, net_cfg, data_cfg or SyntheticConfig()), run, state, on_event)
 
 
 def median_seconds(solver: Callable, points: Tensor, repeats: int = 5) -> dict:

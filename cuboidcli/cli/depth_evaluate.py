@@ -1,0 +1,54 @@
+"""Depth errors of a depth estimator on an RGB-D dataset folder: the command behind
+``python -m cuboidcli.depth.evaluate DATA [--model PATH] [--split NAME] [--filled] [--out FILE.json]``.
+
+The work is :func:`cuboidcli.depth.evaluate.evaluate_dataset`; this module parses the options and prints one
+line per frame and their mean on stdout.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+import typer
+
+from cuboidcli.cli.common import fail, run_as_module, user_errors
+
+PROG = "python -m cuboidcli.depth.evaluate"
+
+
+def evaluate_depth_cmd(
+    data: Path = typer.Argument(..., help="RGB-D dataset folder (the layout of 'cuboids synth', or flat)."),
+    model: Path | None = typer.Option(
+        None, "--model", help="Built-in .pt checkpoint or metric .onnx [default: the shipped network]."
+    ),
+    split: str | None = typer.Option(None, "--split", help="Only the frames of this split (splits.json)."),
+    filled: bool = typer.Option(False, "--filled", help="Use in-painted ground truth where both exist."),
+    out: Path | None = typer.Option(None, "--out", help="Write the report as JSON."),
+) -> None:
+    """Depth errors (AbsRel, RMSE, delta < 1.25) of a depth estimator on an RGB-D dataset folder."""
+    from cuboidcli.depth.estimator import make_depth_estimator
+    from cuboidcli.depth.evaluate import evaluate_dataset
+    from cuboidcli.io.atomic import atomic_write_json
+    from cuboidcli.weights import resolve
+
+    path = resolve("depth", model)
+    with user_errors():
+        try:
+            report = evaluate_dataset(make_depth_estimator(path), data, split, raw=not filled)
+        except ValueError as e:
+            fail(str(e))
+    report["model"] = {"path": str(path), "sha256": hashlib.sha256(path.read_bytes()).hexdigest()}
+    report["data"] = str(data)
+    for name, errors in [*report["frames"].items(), ("mean", report["mean"])]:
+        typer.echo(
+            f"{name:24s} AbsRel {errors['abs_rel']:.3f}  RMSE {errors['rmse_m']:.3f} m  "
+            f"d<1.25 {errors['delta1']:.3f}"
+        )
+    if out:
+        atomic_write_json(out, report)
+
+
+def module_main(argv: list[str] | None = None) -> None:
+    """``python -m cuboidcli.depth.evaluate ARGV`` (``argv`` None: the process's arguments)."""
+    run_as_module(evaluate_depth_cmd, argv, PROG)

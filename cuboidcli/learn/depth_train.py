@@ -1,0 +1,348 @@
+"""Training of the built-in depth network on an RGB-D dataset folder (the layout of ``cuboids synth``).
+
+Loss over the valid ground-truth pixels (depth > 0) of each image: the scale-invariant log error of Eigen
+et al. (2014), sqrt(mean g^2 - lambda (mean g)^2) with g = log d - log d*, averaged over the batch, plus
+``l1_weight`` times the mean absolute depth error in metres (the scale-invariant term alone would leave
+the metric scale to the (1 - lambda) share of its penalty).
+
+Targets live in the net's canonical camera: the images are resized to the net's input size and each
+frame's depth is multiplied by f_canonical / f_frame (f the geometric mean of the focal lengths at the
+input size; 1 for a dataset written with one camera). Augmentation, drawn from a seeded generator:
+a random crop of ``min_crop``..1 of the image resized back to the input size (it magnifies by 1 / s, so
+the canonical depth of every pixel becomes s times its depth), a horizontal flip (the focal length, the
+only intrinsic the target depends on, is unchanged; the principal point mirrors, which the net never
+sees), and colour jitter (brightness, contrast, saturation).
+
+The loop is :func:`cuboidcli.learn.trainer.run_job`'s (:class:`DepthJob`: epoch-based, one process).
+Files in ``out_dir``: ``config.json``, ``log.jsonl`` (one record per logged step, validation and epoch),
+``last.pt`` (training state: weights, optimizer, generator state, epoch; resume with it) and ``best.pt``
+(weights-only checkpoint with the lowest validation AbsRel). The library prints nothing; progress goes
+to ``on_event``. The command line is ``cuboids train depth`` (:mod:`cuboidcli.cli.train_depth`);
+``python -m cuboidcli.depth.train`` remains as the older spelling of it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Collection
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+
+import numpy as np
+import torch
+import torch.nn.functional as F  # noqa: N812 - the usual alias
+
+from cuboidcli.depth.estimator import BuiltinDepthEstimator, resize
+from cuboidcli.depth.evaluate import evaluate_frames
+from cuboidcli.io.dataset import Frame, list_frames
+from cuboidcli.learn.trainer import (
+    Run,
+    RunConfig,
+    StepResult,
+    TrainingJob,
+    Validation,
+    read_state,
+    resumed_config,
+    run_job,
+    warmup_cosine_lr,
+)
+from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
+from cuboidcli.nets.depth import DepthNet, DepthNetConfig
+
+
+@dataclass(frozen=True)
+class DepthTrainConfig:
+    """Schedule, loss and augmentation of a training run."""
+
+    epochs: int = 60
+    """Passes over the training split."""
+    batch: int = 8
+    lr: float = 1e-3
+    """Peak AdamW learning rate."""
+    weight_decay: float = 1e-4
+    warmup: int = 100
+    """Linear warm-up steps."""
+    final_lr_ratio: float = 0.02
+    """The cosine decay ends at lr * final_lr_ratio."""
+    grad_clip: float = 5.0
+    """Max global gradient norm."""
+    silog_lambda: float = 0.85
+    """lambda of the scale-invariant log loss (1 = fully scale invariant)."""
+    l1_weight: float = 0.2
+    """Weight of the mean absolute depth error, 1/m."""
+    min_crop: float = 0.8
+    """Smallest random crop, as a fraction of the image side (1 = no crop augmentation)."""
+    flip: bool = True
+    """Random horizontal flips."""
+    jitter: float = 0.3
+    """Colour jitter strength: factors drawn from [1 - jitter, 1 + jitter]."""
+    seed: int = 0
+    """Seeds the initial weights, the order of the frames and the augmentation."""
+    threads: int = 1
+    """torch CPU threads (the machine's cores are shared)."""
+    log_every: int = 10
+    max_minutes: float | None = None
+    """Budget of training wall time (summed over resumed sessions): the cosine decay then follows whichever
+    budget runs out faster, epochs or time, and the run ends with a validation when either is spent."""
+    device: str = "cpu"
+    """torch device of the forward and backward passes (augmentation stays on the CPU)."""
+
+    def __post_init__(self) -> None:
+        for name in ("epochs", "batch", "threads", "log_every"):
+            if getattr(self, name) < 1:
+                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+        for name in ("lr", "grad_clip"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
+        for name in ("weight_decay", "warmup", "l1_weight", "final_lr_ratio"):
+            if not getattr(self, name) >= 0:
+                raise ValueError(f"{name} must not be negative, got {getattr(self, name)}")
+        if not 0 <= self.silog_lambda <= 1:
+            raise ValueError(f"silog_lambda must lie in [0, 1], got {self.silog_lambda}")
+        if not 0 < self.min_crop <= 1:
+            raise ValueError(f"min_crop must lie in (0, 1] (1 = no crops), got {self.min_crop}")
+        if not 0 <= self.jitter < 1:
+            raise ValueError(f"jitter must lie in [0, 1), got {self.jitter}")
+        if self.max_minutes is not None and not self.max_minutes > 0:
+            raise ValueError(f"max_minutes must be positive, got {self.max_minutes}")
+        if self.device != "cpu" and not self.device.startswith("cuda"):
+            raise ValueError(f"device must be cpu or cuda[:N], got {self.device!r}")
+
+
+STATE_KIND = "depth-train-state"
+#: The weights of the lowest validation AbsRel, a plain weights file.
+BEST = "best.pt"
+
+RESUME_OVERRIDES = ("threads", "max_minutes", "log_every", "device")
+"""Fields of the caller's config that replace the checkpoint's when resuming, unless told otherwise."""
+
+
+def load_train_state(path: str | Path) -> dict:
+    """The training state of a ``last.pt``; ValueError when ``path`` holds something else."""
+    return read_state(path, STATE_KIND, "depth training")
+
+
+def focal_at_input(camera, cfg: DepthNetConfig) -> float:
+    """Geometric mean focal length (px) of ``camera`` after resizing its image to the net's input size."""
+    return math.sqrt(
+        camera.fx * cfg.input_width / camera.width * camera.fy * cfg.input_height / camera.height
+    )
+
+
+def load_split(frames: list[Frame], cfg: DepthNetConfig) -> tuple[torch.Tensor, torch.Tensor]:
+    """Images and canonical-camera depth targets at the net's input size: uint8 (N, 3, h, w) and float32
+    (N, 1, h, w) metres (0 = hole; nearest-neighbour resizing keeps holes holes)."""
+    import cv2
+
+    rgbs, depths = [], []
+    for f in frames:
+        rgb = f.rgb()
+        if rgb is None:
+            raise ValueError(f"frame {f.name} has no RGB image; the depth net trains on RGB-D frames")
+        depth = f.depth_m()
+        if depth.shape != (cfg.input_height, cfg.input_width):
+            depth = cv2.resize(depth, (cfg.input_width, cfg.input_height), interpolation=cv2.INTER_NEAREST)
+        depth = depth * (cfg.canonical_focal_px / focal_at_input(f.camera, cfg))
+        rgbs.append(resize(rgb, cfg.input_height, cfg.input_width))
+        depths.append(depth.astype(np.float32))
+    rgb_t = torch.from_numpy(np.stack(rgbs)).permute(0, 3, 1, 2).contiguous()
+    return rgb_t, torch.from_numpy(np.stack(depths))[:, None]
+
+
+def augment(
+    rgb: torch.Tensor, depth: torch.Tensor, cfg: DepthTrainConfig, gen: torch.Generator
+) -> tuple[torch.Tensor, torch.Tensor]:
+    """rgb (B, 3, h, w) in [0, 1] and depth (B, 1, h, w) m -> augmented copies (see the module docstring)."""
+    b, _, h, w = rgb.shape
+    out_rgb, out_depth = [], []
+    for i in range(b):
+        x, d = rgb[i : i + 1], depth[i : i + 1]
+        s = cfg.min_crop + (1.0 - cfg.min_crop) * float(torch.rand((), generator=gen))
+        if s < 1.0:
+            ch, cw = max(8, round(s * h)), max(8, round(s * w))
+            top = int(torch.randint(0, h - ch + 1, (), generator=gen))
+            left = int(torch.randint(0, w - cw + 1, (), generator=gen))
+            x = F.interpolate(x[..., top : top + ch, left : left + cw], size=(h, w), mode="bilinear")
+            d = F.interpolate(d[..., top : top + ch, left : left + cw], size=(h, w), mode="nearest")
+            d = d * (ch / h)  # magnified by h / ch: canonical depth shrinks by the same factor
+        if cfg.flip and float(torch.rand((), generator=gen)) < 0.5:
+            x, d = x.flip(-1), d.flip(-1)
+        out_rgb.append(x)
+        out_depth.append(d)
+    x, d = torch.cat(out_rgb), torch.cat(out_depth)
+    if cfg.jitter > 0:
+        j = cfg.jitter
+        factors = 1.0 + j * (2.0 * torch.rand(3, b, 1, 1, 1, generator=gen) - 1.0)
+        x = x * factors[0]  # brightness
+        mean = x.mean((1, 2, 3), keepdim=True)
+        x = (x - mean) * factors[1] + mean  # contrast
+        grey = x.mean(1, keepdim=True)
+        x = (x - grey) * factors[2] + grey  # saturation
+        x = x.clamp(0.0, 1.0)
+    return x, d
+
+
+def depth_loss(pred: torch.Tensor, target: torch.Tensor, cfg: DepthTrainConfig) -> torch.Tensor:
+    """Scale-invariant log loss + l1_weight * L1 over valid pixels: pred, target (B, 1, h, w) m -> scalar."""
+    valid = target > 0
+    safe_target = torch.where(valid, target, torch.ones_like(target))
+    g = torch.where(valid, pred.log() - safe_target.log(), torch.zeros_like(pred))
+    n = valid.sum((1, 2, 3)).clamp_min(1)
+    mean_g = g.sum((1, 2, 3)) / n
+    mean_g2 = (g * g).sum((1, 2, 3)) / n
+    silog = (mean_g2 - cfg.silog_lambda * mean_g**2).clamp_min(1e-8).sqrt()
+    l1 = torch.where(valid, (pred - target).abs(), torch.zeros_like(pred)).sum() / valid.sum().clamp_min(1)
+    return silog.mean() + cfg.l1_weight * l1
+
+
+def lr_at(step: int, total_steps: int, cfg: DepthTrainConfig, time_fraction: float = 0.0) -> float:
+    """Linear warm-up, then cosine down to final_lr_ratio * lr (following time when it runs ahead)."""
+    return warmup_cosine_lr(step, total_steps, cfg.lr, cfg.warmup, cfg.final_lr_ratio, time_fraction)
+
+
+class DepthJob(TrainingJob):
+    """Training of the depth network as a job of :func:`~cuboidcli.learn.trainer.run_job`: epoch-based, in
+    one process, validated after every epoch on the val split."""
+
+    name = "depth"
+    state_kind = STATE_KIND
+    step_event = "train"
+    end_event = "done"
+    rate_key = "images_per_s"
+    lower_is_better = True
+    distributed = False
+
+    def __init__(self, cfg: DepthTrainConfig, data: str | Path, net_cfg: DepthNetConfig | None):
+        self.cfg, self.data, self.net_cfg = cfg, data, net_cfg
+
+    def setup(self, run: Run, state: dict | None) -> None:
+        cfg, data = self.cfg, self.data
+        train_frames, val_frames = list_frames(data, "train"), list_frames(data, "val")
+        if not train_frames:
+            raise ValueError(f"{data}'s train split is empty")
+        if len(train_frames) < cfg.batch:
+            raise ValueError(
+                f"batch {cfg.batch} is larger than the {len(train_frames)} frames of {data}'s train split"
+            )
+        if not val_frames:
+            raise ValueError(f"{data}'s val split is empty; validation picks best.pt")
+        no_rgb = [f.name for f in val_frames if f.rgb_path is None]
+        if no_rgb:
+            raise ValueError(f"val frame {no_rgb[0]} has no RGB image; the depth net trains on RGB-D frames")
+        self.train_frames, self.val_frames = train_frames, val_frames
+        net_cfg = self.net_cfg or DepthNetConfig()
+        if state is None:
+            net_cfg = replace(net_cfg, canonical_focal_px=focal_at_input(train_frames[0].camera, net_cfg))
+        self.net_cfg = net_cfg
+        self.rgb_all, self.depth_all = load_split(train_frames, net_cfg)
+        self.net = DepthNet(net_cfg).to(run.device)
+        self.optimizer = torch.optim.AdamW(self.net.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+        self.gen = torch.Generator().manual_seed(cfg.seed)
+        if state is not None:
+            self.net.load_state_dict(state["state_dict"])
+            self.gen.set_state(state["generator"])
+        self.steps_per_epoch = len(train_frames) // cfg.batch
+        self.total_steps = self.steps_per_epoch * cfg.epochs
+
+    def batches(self, run: Run):
+        self.net.train()
+        order = torch.randperm(len(self.train_frames), generator=self.gen)
+        b = self.cfg.batch
+        return (order[k * b : (k + 1) * b] for k in range(self.steps_per_epoch))
+
+    def step(self, run: Run, idx: torch.Tensor) -> StepResult:
+        cfg, net, opt = self.cfg, self.net, self.optimizer
+        x, target = augment(self.rgb_all[idx].float() / 255.0, self.depth_all[idx], cfg, self.gen)
+        x, target = x.to(run.device), target.to(run.device)
+        lr = lr_at(run.step, self.total_steps, cfg, run.time_fraction())
+        for group in opt.param_groups:
+            group["lr"] = lr
+        loss = depth_loss(net(net.normalise(x)), target, cfg)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        grad_norm = torch.nn.utils.clip_grad_norm_(net.parameters(), cfg.grad_clip)
+        opt.step()
+        fields = {"epoch": run.epoch, "lr": lr, "grad_norm": float(grad_norm)}
+        return StepResult({"loss": loss.item()}, fields, items=cfg.batch)
+
+    def validate(self, run: Run) -> Validation:
+        estimator = BuiltinDepthEstimator(net=self.net, device=run.device)
+        self.val = evaluate_frames(estimator, self.val_frames)["mean"]
+        return Validation(self.val["abs_rel"], self.val)
+
+    def state(self, run: Run) -> dict:
+        return {
+            "config": self.net_cfg.to_dict(),
+            "state_dict": self.net.state_dict(),
+            "generator": self.gen.get_state(),
+            "train_config": asdict(self.cfg),
+        }
+
+    def networks(self) -> dict[str, torch.nn.Module]:
+        return {"depth": self.net}
+
+    def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
+        meta = {
+            "epoch": run.epoch,
+            "step": run.step,
+            "validation": validation,
+            "parameters": parameter_count(self.net),
+            "train_config": asdict(self.cfg),
+            "data": str(self.data),
+            "elapsed_s": run.elapsed(),
+        }
+        return {BEST: checkpoint_dict(self.net, meta)}
+
+    def settings(self, run: Run) -> dict:
+        settings = {"data": str(self.data), "train": asdict(self.cfg), "net": self.net_cfg.to_dict()}
+        return {**settings, "frames": {"train": len(self.train_frames), "val": len(self.val_frames)}}
+
+    def start_fields(self, run: Run) -> dict:
+        return {
+            "batch": self.cfg.batch,
+            "steps_per_epoch": self.steps_per_epoch,
+            "train_frames": len(self.train_frames),
+            "val_frames": len(self.val_frames),
+            "device": str(run.device),
+        }
+
+    def end_fields(self, run: Run) -> dict:
+        return {"best_abs_rel": run.best, "best": str(run.out_dir / BEST)}
+
+
+def train_depth(
+    data: str | Path,
+    out_dir: str | Path,
+    cfg: DepthTrainConfig | None = None,
+    net_cfg: DepthNetConfig | None = None,
+    resume: str | Path | None = None,
+    on_event: Callable[[dict], None] | None = None,
+    resume_overrides: Collection[str] = RESUME_OVERRIDES,
+) -> dict:
+    """Train (or resume) on ``data``'s train split, validating on its val split after every epoch.
+
+    The net's canonical focal length is that of the first training frame at the input size. When
+    resuming, schedule and net come from the checkpoint except the fields of ``cfg`` named in
+    ``resume_overrides`` (by default ``threads``, ``max_minutes``, ``log_every`` and ``device``; add
+    ``epochs`` to extend a finished run, which also stretches the cosine decay).
+    Returns the final record (epoch, best validation AbsRel, paths).
+    """
+    cfg = cfg or DepthTrainConfig()
+    state = None
+    if resume is not None:
+        state = load_train_state(resume)
+        cfg = resumed_config(state["train_config"], cfg, resume_overrides)
+        net_cfg = DepthNetConfig.from_dict(state["config"])
+    run = RunConfig(
+        Path(out_dir),
+        seed=cfg.seed,
+        max_epochs=cfg.epochs,
+        max_minutes=cfg.max_minutes,
+        stop_within_epoch=True,
+        minutes_span_resumes=True,
+        log_every=cfg.log_every,
+        resume=None if resume is None else Path(resume),
+        threads=cfg.threads,
+        device=cfg.device,
+    )
+    return run_job(DepthJob(cfg, data, net_cfg), run, state, on_event)
