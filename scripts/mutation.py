@@ -50,29 +50,34 @@ TARGETS = (
         "cuboidcli/geometry/kernels.py",
         None,
         (
-            "tests/test_kernels.py",
+            "tests/geometry/test_kernels.py",
             "tests/test_paper_defaults.py",
             "tests/test_properties.py",
-            "tests/test_fused.py",
+            "tests/geometry/test_fused.py",
         ),
     ),
-    Target("pca_init", "cuboidcli/solvers/numerical.py", ("pca_init",), ("tests/test_solver_numerical.py",)),
+    Target(
+        "pca_init",
+        "cuboidcli/solvers/numerical.py",
+        ("pca_init",),
+        ("tests/solvers/test_solver_numerical.py",),
+    ),
     Target(
         "metrics",
         "cuboidcli/evaluation/metrics.py",
         None,
         (
-            "tests/test_metrics_edges.py",
-            "tests/test_metrics.py",
-            "tests/test_eval_objects.py",
-            "tests/test_evaluate_failures.py",
+            "tests/evaluation/test_metrics_edges.py",
+            "tests/evaluation/test_metrics.py",
+            "tests/evaluation/test_eval_objects.py",
+            "tests/evaluation/test_evaluate_failures.py",
         ),
     ),
     Target(
         "scoring",
         "cuboidcli/fitting/scoring.py",
         None,
-        ("tests/test_scoring.py", "tests/test_fused.py", "tests/test_pipeline.py"),
+        ("tests/fitting/test_scoring.py", "tests/geometry/test_fused.py", "tests/fitting/test_pipeline.py"),
     ),
 )
 

@@ -3,7 +3,7 @@ flags, default and help text, which for the options that set FitConfig fields ar
 the first paragraph of its docstring (cuboidcli/cli/options.py; ``literals`` in backticks).
 
     python scripts/readme_options.py           # rewrite the table in README.md
-    python scripts/readme_options.py --check   # exit 1 if it is not up to date (tests/test_options.py)
+    python scripts/readme_options.py --check   # exit 1 if it is not up to date (tests/cli/test_options.py)
 """
 
 from __future__ import annotations

@@ -4,7 +4,7 @@ Such an option is the parameter of its command named after the field (``slab_max
 its flags, ``--slab-max``); its default is the field's and its help text the first paragraph of the field's
 docstring in fitting/config.py (:func:`field_help`). :func:`fit_config` turns a command's options into a
 FitConfig, with the command line's checks and messages. ``--fast`` and ``--device``, which are no plain
-fields, are defined here once for every command. ``tests/test_options.py`` holds the commands to this.
+fields, are defined here once for every command. ``tests/cli/test_options.py`` holds the commands to this.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ from cuboidcli.io.dataset import write_cameras
 from cuboidcli.io.depth import InputError
 from cuboidcli.io.result import FitResult, write_result
 
-SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+SHARED_DATA = Path(__file__).resolve().parents[3] / "shared" / "data"
 CAM = Camera.preset("nyu").scaled(0.125)  # 80x60
 SMALL = FitConfig(hypotheses=48, max_cuboids=3, grid_step=2)
 FAST_OPTS = ["--hypotheses", "48", "--max-cuboids", "3", "--grid-step", "2", "--device", "cpu"]

@@ -9,7 +9,7 @@ import pytest
 import torch
 
 from cuboidcli.fitting.scoring import ScoreParams, gains_torch, select_best
-from tests.test_fused import BETA, TAU, scene
+from tests.geometry.test_fused import BETA, TAU, scene
 
 SP = ScoreParams(TAU, BETA, 2 * TAU)
 

@@ -25,7 +25,7 @@ from cuboidcli.io.depth import read_depth
 from cuboidcli.sampling import SequentialSampler
 from cuboidcli.synth import render_boxes
 
-SAMPLE = Path(__file__).resolve().parents[1] / "cuboidcli" / "data" / "sample"
+SAMPLE = Path(__file__).resolve().parents[2] / "cuboidcli" / "data" / "sample"
 
 
 @pytest.fixture(scope="module")

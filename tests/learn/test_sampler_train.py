@@ -280,7 +280,7 @@ def test_trainers_read_the_official_nyu_files(tmp_path):
     """A folder with nyu_depth_v2_labeled.mat + splits.mat gives the paper's train/val split."""
     from cuboidcli.evaluation.raycast import render_depth
     from cuboidcli.learn.sampler_data import dataset_splits, prepare_scenes
-    from tests.test_evaluate import scene, write_labeled_mat, write_splits_v5
+    from tests.evaluation.test_evaluate import scene, write_labeled_mat, write_splits_v5
 
     cam = Camera.preset("nyu").with_size(80, 60)
     depths = np.stack([render_depth(cam, scene(i)) for i in range(4)])

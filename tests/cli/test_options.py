@@ -25,7 +25,7 @@ from cuboidcli.cli.options import (
 from cuboidcli.evaluation.presets import resolve
 from cuboidcli.fitting.config import FitConfig
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DEFAULTS = FitConfig()
 FIELDS = {f.name for f in dataclasses.fields(FitConfig)}
 

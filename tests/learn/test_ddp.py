@@ -74,7 +74,7 @@ def test_torchrun_two_processes_train_one_model(tmp_path):
 
 @pytest.fixture(scope="module")
 def sampler_dataset(tmp_path_factory):
-    """As tests/test_sampler_train.py's tiny_dataset: simple_room from 4 shifted 160x120 cameras, 3 train,
+    """As test_sampler_train.py's tiny_dataset: simple_room from 4 shifted 160x120 cameras, 3 train,
     1 val."""
     from cuboidcli.camera import Camera
 
@@ -119,7 +119,7 @@ def test_torchrun_two_processes_train_one_sampler(tmp_path, sampler_dataset):
 
 @pytest.fixture(scope="module")
 def finetune_setup(tmp_path_factory):
-    """As tests/test_finetune.py's rgbd_dataset and weights: simple_room with depth and a shaded RGB image
+    """As test_finetune.py's rgbd_dataset and weights: simple_room with depth and a shaded RGB image
     from 4 shifted 160x120 cameras (3 train, 1 val), a tiny sampler and a tiny depth net."""
 
     from cuboidcli.camera import Camera

@@ -29,8 +29,8 @@ from cuboidcli.geometry.gravity import given_gravity
 from cuboidcli.io.result import FitResult, write_result
 from cuboidcli.synth.render import render_boxes
 from tests.conftest import simple_room, yaw
-from tests.test_evaluate import CAM as SMALL_CAM
-from tests.test_evaluate import make_folder, scene
+from tests.evaluation.test_evaluate import CAM as SMALL_CAM
+from tests.evaluation.test_evaluate import make_folder, scene
 
 CAM = Camera.preset("nyu").scaled(0.25)  # 160x120
 #: world_from_camera of a level camera 1.5 m above the floor: the rows of the rotation are the room's
@@ -271,7 +271,7 @@ def test_box_recall_and_precision_at_iou_25(room):
 
 
 def synthetic_folder(root, pose=LEVEL_POSE) -> list[str]:
-    """tests.test_evaluate's folder with ground-truth files that carry the camera pose, as `cuboids synth`
+    """test_evaluate's folder with ground-truth files that carry the camera pose, as `cuboids synth`
     writes them (scene(i): a room box around the level camera and a box yawed by 15 i degrees)."""
     names = make_folder(root)
     for i, name in enumerate(names):

@@ -15,7 +15,7 @@ from cuboidcli.evaluation.metrics import aggregate, frame_metrics
 from cuboidcli.evaluation.raycast import render_depth
 from cuboidcli.evaluation.runner import EvalSettings, MissingFrame, evaluate, load_frames
 from cuboidcli.fitting.config import FitConfig
-from tests.test_evaluate import CAM, FAST_OPTS, SMALL, make_folder
+from tests.evaluation.test_evaluate import CAM, FAST_OPTS, SMALL, make_folder
 
 
 @pytest.fixture()

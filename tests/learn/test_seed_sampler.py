@@ -12,7 +12,7 @@ from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext
 from cuboidcli.sampling.learned import LearnedSampler
 
-WEIGHTS = Path(__file__).resolve().parents[1] / "models" / "sampler_v3.pt"
+WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "sampler_v3.pt"
 
 
 def _kl_to_prior(sampler, prep, state):

@@ -1,0 +1,274 @@
+"""cuboidcli.fitting.frame: one frame's inputs (depth and/or RGB, intrinsics, depth scale) as a FrameInput,
+and a fit packaged as a FitResult with its settings and fit_info."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import replace
+
+import cv2
+import numpy as np
+import pytest
+
+from cuboidcli.camera import PRESETS, Camera
+from cuboidcli.cuboid import Cuboid
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.frame import (
+    DepthModelOptions,
+    depth_estimator,
+    load_frame,
+    make_result,
+    resolve_depth_scale,
+    same_settings,
+)
+from cuboidcli.fitting.pipeline import FitInfo
+from cuboidcli.geometry.gravity import given_gravity
+from cuboidcli.io.depth import InputError, Intrinsics
+from cuboidcli.io.result import read_result, write_result
+
+H, W = 48, 64
+SPEC = "200,210,31.5,23.5"
+
+
+def _units() -> np.ndarray:
+    """A depth map in PNG units (H, W) uint16: a ramp 1000-3000 with a hole in the corner."""
+    units = np.tile(np.linspace(1000, 3000, W), (H, 1)).astype(np.uint16)
+    units[:6, :8] = 0
+    return units
+
+
+@pytest.fixture()
+def depth_png(tmp_path):
+    path = tmp_path / "room_depth.png"
+    cv2.imwrite(str(path), _units())
+    return path
+
+
+@pytest.fixture()
+def rgb_png(tmp_path):
+    bgr = np.zeros((H, W, 3), np.uint8)
+    bgr[..., 0], bgr[..., 1], bgr[..., 2] = 10, 20, 30  # blue, green, red as cv2 stores them
+    bgr[:, : W // 2, 2] = 200  # a red left half, so that the network sees some structure
+    path = tmp_path / "room_rgb.png"
+    cv2.imwrite(str(path), bgr)
+    return path
+
+
+def test_a_depth_map_with_intrinsics(depth_png):
+    frame = load_frame(depth_png, intrinsics=SPEC)
+    assert frame.depth_m.dtype == np.float32 and frame.depth_m.shape == (H, W)
+    assert np.array_equal(frame.depth_m, _units().astype(np.float32) * np.float32(0.001))
+    assert frame.camera == Camera(200.0, 210.0, 31.5, 23.5, W, H)  # the size comes from the depth map
+    assert frame.rgb is None and frame.depth_scale == 0.001 and frame.depth_seconds is None
+    assert frame.notes == []
+    assert frame.meta == {
+        "depth": str(depth_png),
+        "image": None,
+        "depth_source": "depth map",
+        "depth_scale": 0.001,
+        "width": W,
+        "height": H,
+        "valid_fraction": round(1 - 48 / (H * W), 6),
+        "intrinsics_source": "command line",
+    }
+
+
+def test_without_intrinsics_the_nyu_preset_is_used_and_the_user_told(tmp_path):
+    units = cv2.resize(_units(), (640, 480), interpolation=cv2.INTER_NEAREST)
+    cv2.imwrite(str(tmp_path / "full.png"), units)
+    frame = load_frame(tmp_path / "full.png")
+    assert frame.camera == Camera.preset("nyu") and frame.meta["intrinsics_source"] == "preset:nyu"
+    assert frame.notes == ["no --intrinsics or --preset given: using the NYU Depth v2 intrinsics"]
+    tum = load_frame(tmp_path / "full.png", preset="tum")  # a preset brings its depth unit: 1/5000 m
+    assert tum.camera == Camera.preset("tum") and tum.notes == []
+    assert tum.depth_scale == PRESETS["tum"]["depth_scale"] and tum.meta["intrinsics_source"] == "preset:tum"
+    assert np.allclose(tum.depth_m, units / 5000.0, rtol=1e-6)
+    # the preset's principal point lies outside a small image: refused; intrinsics given for another
+    # image size but plausible for this one are used as they are, with a note
+    with pytest.raises(
+        InputError, match=r"principal point \(325.582, 253.736\) is far outside the 64x48 image"
+    ):
+        load_frame(_small(tmp_path))
+    shifted = tmp_path / "cam.json"
+    shifted.write_text(
+        json.dumps({"fx": 200.0, "fy": 210.0, "cx": 31.5, "cy": 23.5, "width": 640, "height": 480})
+    )
+    small = load_frame(_small(tmp_path), intrinsics=str(shifted))
+    assert small.camera == Camera(200.0, 210.0, 31.5, 23.5, W, H)
+    assert small.notes == [f"intrinsics are for 640x480 but the depth map is {W}x{H}; using them unscaled"]
+
+
+def _small(tmp_path):
+    path = tmp_path / "small_depth.png"
+    cv2.imwrite(str(path), _units())
+    return path
+
+
+def test_depth_scale_option_beats_the_intrinsics_file_which_beats_the_preset():
+    with_scale = Intrinsics(1.0, 1.0, 0.0, 0.0, depth_scale=0.0002)
+    without = Intrinsics(1.0, 1.0, 0.0, 0.0)
+    assert resolve_depth_scale(0.0005, with_scale, "tum") == 0.0005
+    assert resolve_depth_scale(None, with_scale, "scannet") == 0.0002
+    assert resolve_depth_scale(None, without, "tum") == pytest.approx(0.0002)
+    assert resolve_depth_scale(None, without, None) == 0.001
+    for bad in (0.0, -0.001):
+        with pytest.raises(InputError, match=rf"--depth-scale must be positive \(got {bad}\)"):
+            resolve_depth_scale(bad, with_scale, None)
+
+
+def test_a_cameras_json_gives_intrinsics_and_depth_scale_per_frame(tmp_path):
+    units = _units() // 2  # half a millimetre per unit
+    cv2.imwrite(str(tmp_path / "b_depth.png"), units)
+    cams = {
+        "a": {"fx": 100.0, "fy": 100.0, "cx": 31.5, "cy": 23.5, "width": W, "height": H},
+        "b": {
+            "fx": 150.0,
+            "fy": 160.0,
+            "cx": 30.0,
+            "cy": 20.0,
+            "width": W,
+            "height": H,
+            "depth_scale": 0.0005,
+        },
+    }
+    (tmp_path / "cameras.json").write_text(json.dumps(cams))
+    spec = str(tmp_path / "cameras.json")
+    frame = load_frame(tmp_path / "b_depth.png", intrinsics=spec)  # the name "b" comes from "b_depth"
+    assert frame.camera == Camera(150.0, 160.0, 30.0, 20.0, W, H) and frame.depth_scale == 0.0005
+    assert np.array_equal(frame.depth_m, units.astype(np.float32) * np.float32(0.0005))
+    assert frame.meta["intrinsics_source"] == spec and frame.notes == []
+    other = load_frame(tmp_path / "b_depth.png", intrinsics=spec, frame_name="a", depth_scale=0.001)
+    assert other.camera.fx == 100.0 and other.depth_scale == 0.001
+    with pytest.raises(InputError, match="holds intrinsics for several frames .*none is named 'c'"):
+        load_frame(tmp_path / "b_depth.png", intrinsics=spec, frame_name="c")
+
+
+def test_rgb_is_read_as_rgb_and_must_match_the_depth_map(tmp_path, depth_png, rgb_png):
+    frame = load_frame(depth_png, rgb_png, intrinsics=SPEC)
+    assert frame.rgb.shape == (H, W, 3) and frame.rgb.dtype == np.uint8
+    assert frame.rgb[0, -1].tolist() == [30, 20, 10]  # red, green, blue
+    assert frame.meta["image"] == str(rgb_png) and frame.meta["depth_source"] == "depth map"
+    small = tmp_path / "small.png"
+    cv2.imwrite(str(small), np.zeros((24, 32, 3), np.uint8))
+    with pytest.raises(
+        InputError, match=f"RGB image is 32x24 but the depth map is {W}x{H}; they must be registered"
+    ):
+        load_frame(depth_png, small, intrinsics=SPEC)
+
+
+def test_an_rgb_image_alone_gets_its_depth_from_the_built_in_network(rgb_png):
+    frame = load_frame(None, rgb_png, intrinsics=SPEC)
+    assert frame.depth_m.shape == (H, W) and (frame.depth_m > 0).all()
+    assert frame.camera == Camera(200.0, 210.0, 31.5, 23.5, W, H) and frame.rgb.shape == (H, W, 3)
+    assert frame.meta["depth"] is None and frame.meta["image"] == str(rgb_png)
+    assert frame.meta["depth_source"].startswith("depth estimated from RGB by the built-in network")
+    assert frame.meta["valid_fraction"] == 1.0
+    assert frame.depth_seconds is not None and frame.depth_seconds > 0
+    # the network is built once per process and options
+    assert depth_estimator(DepthModelOptions()) is depth_estimator(DepthModelOptions())
+
+
+@pytest.mark.parametrize(
+    "options, message",
+    [
+        (DepthModelOptions(model="missing.pt"), "depth weights missing.pt not found"),
+        (DepthModelOptions(model="model.tflite"), "expected an .onnx file"),
+        (DepthModelOptions(kind="relative"), "the built-in depth network predicts metric depth"),
+        (DepthModelOptions(model="missing.onnx"), "depth model missing.onnx not found"),
+    ],
+)
+def test_depth_model_problems_are_input_errors(rgb_png, options, message):
+    with pytest.raises(InputError, match=message):
+        load_frame(None, rgb_png, intrinsics=SPEC, depth_model=options)
+
+
+def test_unusable_inputs_are_one_line_input_errors(tmp_path, depth_png):
+    zeros = tmp_path / "zeros.png"
+    cv2.imwrite(str(zeros), np.zeros((H, W), np.uint16))
+    cases = [
+        (
+            dict(depth_path=depth_png, preset="kinect9"),
+            "unknown --preset 'kinect9'; choose one of: nyu, tum, scannet",
+        ),
+        (dict(depth_path=None), r"give a depth map \(--depth D.png\) or an RGB image"),
+        (dict(depth_path=tmp_path / "nope.png"), "depth file not found"),
+        (dict(depth_path=zeros), "the depth map has no valid pixels"),
+        (dict(depth_path=depth_png, depth_scale=1.0), r"median depth is \d+ m: the depth unit looks wrong"),
+        (dict(depth_path=depth_png, intrinsics="5,5,31.5,23.5"), "looks like a focal length in millimetres"),
+        (
+            dict(depth_path=depth_png, intrinsics="200,210,500,23.5"),
+            r"principal point \(500, 23.5\) is far outside",
+        ),
+        (dict(depth_path=depth_png, intrinsics="200,210"), "give fx,fy,cx,cy in pixels"),
+    ]
+    for kwargs, message in cases:
+        with pytest.raises(InputError, match=message) as caught:
+            load_frame(**kwargs)
+        assert "\n" not in str(caught.value)
+
+
+def _info(**kwargs) -> FitInfo:
+    info = FitInfo(
+        gains=[120.0, 45.5],
+        theta=41.4,
+        n_points=1000,
+        iterations=3,
+        batches=[1, 2, 0],
+        stop_reason="gain_below_theta",
+        rejected_gain=12.0,
+        timing_s={"sample": 0.2, "total": 0.5},
+        align="manhattan",
+        aligned=["manhattan", "gravity"],
+        warnings=["only 0.5 % of depth pixels are valid"],
+    )
+    return replace(info, **kwargs)
+
+
+def test_make_result_records_the_settings_and_what_happened():
+    camera = Camera(200.0, 210.0, 31.5, 23.5, W, H)
+    cuboids = [Cuboid([0.0, 0.0, 2.0], [0.5, 0.4, 0.3], np.eye(3))]
+    config = FitConfig(max_cuboids=5, seed=3)
+    meta = {"depth": "d.png", "width": W}
+    info = _info()
+    result = make_result(camera, cuboids, info, config, meta, "numerical", "sequential", {"weights": "w.pt"})
+    assert result.camera == camera and result.cuboids == cuboids and result.input == meta
+    assert result.timing_s == {"sample": 0.2, "total": 0.5}
+    assert result.settings == {
+        **config.to_dict(),
+        "theta_used": 41.4,
+        "solver_name": "numerical",
+        "sampler_name": "sequential",
+        "weights": "w.pt",
+    }
+    assert result.extras == {
+        "fit_info": {
+            "n_points": 1000,
+            "iterations": 3,
+            "batches": [1, 2, 0],
+            "stop_reason": "gain_below_theta",
+            "rejected_gain": 12.0,
+            "gains": [120.0, 45.5],
+            "align": "manhattan",
+            "aligned": ["manhattan", "gravity"],
+            "warnings": ["only 0.5 % of depth pixels are valid"],
+        }
+    }
+    # with a gravity estimate the result carries it and the camera pose it gives
+    gravity = given_gravity([0.0, 2.0, 0.0])
+    levelled = make_result(camera, cuboids, _info(gravity=gravity), config, meta, "numerical", "sequential")
+    assert levelled.extras["gravity"] == gravity.to_dict()
+    assert np.allclose(levelled.extras["world_from_camera"], gravity.world_from_camera())
+    assert "weights" not in levelled.settings
+
+
+def test_same_settings_compares_a_saved_result_with_a_configuration(tmp_path):
+    camera = Camera(200.0, 210.0, 31.5, 23.5, W, H)
+    config = FitConfig(max_cuboids=5)
+    result = make_result(camera, [], _info(), config, {}, "numerical", "sequential", {"weights": "w.pt"})
+    write_result(tmp_path / "r.json", result)
+    saved = read_result(tmp_path / "r.json").settings
+    assert same_settings(saved, config, {"weights": "w.pt"})
+    assert same_settings(saved, config)  # the weights were not asked about
+    assert not same_settings(saved, replace(config, max_cuboids=6), {"weights": "w.pt"})
+    assert not same_settings(saved, replace(config, local_radii_m=(0.2, 0.4)), {"weights": "w.pt"})
+    assert not same_settings(saved, config, {"weights": "other.pt"})
