@@ -97,31 +97,20 @@ class NumericalSolver:
         rot_dof = 0 if fixed else 1
         use_fused = self.backend == "fused" or (self.backend == "auto" and pts.device.type == "cpu")
         if use_fused:
-            from cuboidcli.solvers.adam_fused import adam_solve
-
-            init = torch.cat([c0, r0, a0], -1).contiguous().numpy()
-            out = init.copy()
-            adam_solve(
-                pts.double().contiguous().numpy(),
-                init,
-                self.bounds.a_min,
-                self.bounds.a_max,
-                self.lr,
-                self.iters,
-                out,
-                rot_dof,
-            )
-            best = torch.from_numpy(out).to(pts.dtype)
-            return best[:, :3].contiguous(), best[:, 6:].contiguous(), axis_angle_to_matrix(best[:, 3:6])
+            return self._adam_fused(pts, c0, r0, a0, rot_dof)
         return self._adam_torch(pts, c0.to(pts.dtype), r0.to(pts.dtype), a0.to(pts.dtype), rot_dof)
 
     def _solve_fused(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        from cuboidcli.solvers.adam_fused import adam_solve
-
         pts = minimal_sets.detach()
         with torch.no_grad():
             c0, a0, R0 = pca_init(pts.double(), self.bounds)
-            init = torch.cat([c0, matrix_to_axis_angle(R0), a0], -1).contiguous().numpy()
+        return self._adam_fused(pts, c0, matrix_to_axis_angle(R0), a0, 3)
+
+    def _adam_fused(self, pts: Tensor, c0: Tensor, r0: Tensor, a0: Tensor, rot_dof: int):
+        """The fused CPU loop of :meth:`_adam_torch` (float64 in, the input's dtype out)."""
+        from cuboidcli.solvers.adam_fused import adam_solve
+
+        init = torch.cat([c0, r0, a0], -1).double().contiguous().numpy()
         out = init.copy()
         adam_solve(
             pts.double().contiguous().numpy(),
@@ -131,6 +120,7 @@ class NumericalSolver:
             self.lr,
             self.iters,
             out,
+            rot_dof,
         )
         best = torch.from_numpy(out).to(pts.dtype)
         return best[:, :3].contiguous(), best[:, 6:].contiguous(), axis_angle_to_matrix(best[:, 3:6])
