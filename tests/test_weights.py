@@ -81,6 +81,14 @@ def test_version_lists_the_default_weights_with_their_hashes():
     neural = next(line for line in lines if "neural/solver_v2.pt" in line)
     assert neural.split("sha256 ")[1][:12] in card
     assert len(lines) == 1 + len(weights.DEFAULT_FILES) and not any("MISSING" in x for x in lines)
+    # and the command prints them after its version
+    from typer.testing import CliRunner
+
+    from cuboidcli.cli.main import app
+
+    res = CliRunner().invoke(app, ["--version"])
+    assert res.exit_code == 0
+    assert res.output.splitlines()[1:] == lines and res.output.startswith("cuboids ")
 
 
 def test_the_wheel_ships_every_weights_file_and_model_card():

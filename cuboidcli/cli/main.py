@@ -62,14 +62,22 @@ app = typer.Typer(
 
 def _version(value: bool) -> None:
     if value:
+        from cuboidcli.weights import describe_weights
+
         typer.echo(f"cuboids {__version__}")
+        for line in describe_weights():
+            typer.echo(line)
         raise typer.Exit()
 
 
 @app.callback()
 def main(
     version: bool = typer.Option(
-        False, "--version", callback=_version, is_eager=True, help="Print the version."
+        False,
+        "--version",
+        callback=_version,
+        is_eager=True,
+        help="Print the version, the weights folder and a short hash of each default weights file.",
     ),
     debug: bool = typer.Option(
         False,
