@@ -16,7 +16,7 @@ import torch
 
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scoring import ScoreParams, values_torch
-from cuboidcli.geometry.gravity import manhattan_rotation, upright_rotation
+from cuboidcli.geometry.gravity import level_frame, manhattan_rotation, upright_rotation
 from cuboidcli.geometry.kernels import combine
 
 #: An aligned winner replaces the free one only while it keeps this share of the free one's gain: a box
@@ -52,13 +52,10 @@ class Alignment:
     def frame(self) -> np.ndarray:
         """(3, 3) world axes as columns in camera coordinates, the third one up: the room's horizontal axes
         when known, else two horizontal directions (the first from the camera's x axis)."""
+        if self.axes is None:
+            return level_frame(self.up)
         up = self.up / np.linalg.norm(self.up)
-        if self.axes is not None:
-            h1 = self.axes[:, 1]
-        else:
-            x = np.array([1.0, 0.0, 0.0]) if abs(up[0]) < 0.9 else np.array([0.0, 0.0, 1.0])
-            h1 = x - (x @ up) * up
-        h1 = h1 - (h1 @ up) * up
+        h1 = self.axes[:, 1] - (self.axes[:, 1] @ up) * up
         h1 = h1 / np.linalg.norm(h1)
         return np.stack([h1, np.cross(up, h1), up], 1)
 

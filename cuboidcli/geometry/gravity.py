@@ -45,13 +45,8 @@ class Gravity:
         """(4, 4) camera -> gravity-aligned world: origin at the camera, z up, x the camera's x made
         horizontal (its heading), y = z x x. Rows 0-2 of the rotation are the world axes in camera
         coordinates."""
-        z = self.up / np.linalg.norm(self.up)
-        x = np.array([1.0, 0.0, 0.0]) - z[0] * z
-        if np.linalg.norm(x) < 1e-6:  # looking straight up or down the x axis: use the camera's z
-            x = np.array([0.0, 0.0, 1.0]) - z[2] * z
-        x /= np.linalg.norm(x)
         m = np.eye(4)
-        m[:3, :3] = np.stack([x, np.cross(z, x), z])
+        m[:3, :3] = level_frame(self.up).T
         return m
 
     def to_dict(self) -> dict:
@@ -283,6 +278,17 @@ def manhattan_axes(down: np.ndarray, frame: np.ndarray | None) -> np.ndarray | N
         h = frame[:, 2] - (frame[:, 2] @ up) * up
     h /= np.linalg.norm(h)
     return np.stack([up, h, np.cross(up, h)], axis=1)
+
+
+def level_frame(up: np.ndarray) -> np.ndarray:
+    """(3, 3) a gravity-aligned frame as columns in camera coordinates: x the camera's x made horizontal
+    (its heading; the camera's z when x is vertical), y = z x x, z = up."""
+    z = up / np.linalg.norm(up)
+    x = np.array([1.0, 0.0, 0.0]) - z[0] * z
+    if np.linalg.norm(x) < 1e-6:  # looking straight up or down the x axis: use the camera's z
+        x = np.array([0.0, 0.0, 1.0]) - z[2] * z
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], 1)
 
 
 def upright_rotation(rot: np.ndarray, up: np.ndarray) -> np.ndarray:

@@ -5,8 +5,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
+import numpy as np
 import torch
 from torch import Tensor
+
+from cuboidcli.geometry.gravity import upright_rotation
 
 
 @dataclass(frozen=True)
@@ -52,21 +55,8 @@ def solve_upright(
 
 
 def upright_nearest(rotations: Tensor) -> Tensor:
-    """The upright rotations (H, 3, 3) nearest to ``rotations`` in a frame whose z axis is up: the column
-    closest to vertical becomes z, the next one (cyclically) keeps its heading in the horizontal plane."""
-    h = torch.arange(rotations.shape[0], device=rotations.device)
-    k = rotations[:, 2, :].abs().argmax(1)
-    i, j = (k + 1) % 3, (k + 2) % 3
-    up = torch.zeros_like(rotations[:, :, 0])
-    up[:, 2] = 1.0
-    u = rotations[h, :, i].clone()
-    u[:, 2] = 0.0
-    alt = rotations[h, :, j].clone()  # when column i is vertical too (degenerate), column j's heading
-    alt = torch.stack([alt[:, 1], -alt[:, 0], torch.zeros_like(alt[:, 0])], -1)
-    n = u.norm(dim=1, keepdim=True)
-    u = torch.where(n > 1e-6, u / n.clamp_min(1e-12), alt / alt.norm(dim=1, keepdim=True).clamp_min(1e-12))
-    out = torch.zeros_like(rotations)
-    out[h, :, k] = up
-    out[h, :, i] = u
-    out[h, :, j] = torch.linalg.cross(up, u)
-    return out
+    """The upright rotations (H, 3, 3) nearest to ``rotations`` in a frame whose z axis is up
+    (:func:`~cuboidcli.geometry.gravity.upright_rotation` for each)."""
+    up = np.array([0.0, 0.0, 1.0])
+    out = [upright_rotation(r, up) for r in rotations.detach().double().cpu().numpy()]
+    return torch.from_numpy(np.stack(out)).to(rotations)
