@@ -33,6 +33,9 @@ KEYS = (
     ("auc5cm_pct", "AUC@5 %", "{:.1f}"),
     ("object_recall_pct", "obj. recall %", "{:.1f}"),
     ("object_precision_pct", "obj. prec. %", "{:.1f}"),
+    ("slabs_within_3deg_pct", "slabs ≤3° %", "{:.1f}"),
+    ("room_slabs_within_3deg_pct", "room slabs ≤3° %", "{:.1f}"),
+    ("support_median_pct", "support %", "{:.1f}"),
     ("time_s", "time s", "{:.2f}"),
 )
 

@@ -127,6 +127,7 @@ def shape_table(report) -> Table | None:
         ("axis_angle_manhattan_median_deg", "∠room °", 1),
         ("slabs", "slabs", 0),
         ("slabs_within_3deg_pct", "slabs ≤3° %", 1),
+        ("room_slabs_within_3deg_pct", "room ≤3° %", 1),
         ("support_median_pct", "support %", 1),
         ("support_mean_pct", "mean %", 1),
     ]

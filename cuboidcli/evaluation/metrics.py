@@ -266,6 +266,7 @@ class FrameMetrics:
                 "axis_angle_gravity_deg": float(s.angle_gravity_deg[k]),
                 "axis_angle_manhattan_deg": float(s.angle_manhattan_deg[k]),
                 "slab": bool(s.slab[k]),
+                "room_slab": bool(s.room[k]),
                 "visible_px": int(s.visible_px[k]),
                 "supported_px": int(s.supported_px[k]),
                 "support_pct": 100.0 * float(support[k]),
@@ -309,11 +310,16 @@ def shape_summary(shapes: list[ShapeMetrics]) -> dict:
     support = np.concatenate([s.support for s in shapes])
     support = support[np.isfinite(support)]
     slabs = sum(s.slabs_measured for s in shapes)
+    room = sum(s.room_slabs_measured for s in shapes)
     return {
         "axis_angle_gravity_median_deg": _median(ang_g),
         "axis_angle_manhattan_median_deg": _median(ang_m),
         "slabs": slabs,
         "slabs_within_3deg_pct": 100.0 * sum(s.slabs_aligned for s in shapes) / slabs if slabs else math.nan,
+        "room_slabs": room,
+        "room_slabs_within_3deg_pct": (
+            100.0 * sum(s.room_slabs_aligned for s in shapes) / room if room else math.nan
+        ),
         "support_median_pct": 100.0 * float(np.median(support)) if support.size else math.nan,
         "support_mean_pct": 100.0 * float(support.mean()) if support.size else math.nan,
     }

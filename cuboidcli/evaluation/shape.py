@@ -10,6 +10,10 @@ Per predicted cuboid (:func:`shape_metrics`):
   the room; a box yawed by 10 degrees gives 10).
 - ``slab``: the box is a slab by the estimator's rule (:func:`cuboidcli.fitting.winner.thin_axis`: its
   thinnest half-size under a quarter of its middle one).
+- ``room``: the slab is one of the room's shell (wall, floor, ceiling) by a rule that needs no labels
+  (:func:`cuboidcli.fitting.winner.is_room_slab`: at most 5 % of the frame's points lie more than 15 cm
+  beyond it). The share of these within 3 degrees of the room's axes is the alignment measure of walls,
+  floor and ceiling on frames without labels.
 - ``support``: the share of the cuboid's visible face pixels whose depth point is one of its inliers
   (:func:`support_counts`).
 
@@ -84,6 +88,17 @@ def is_slab(half_size: np.ndarray) -> bool:
     from cuboidcli.fitting.winner import thin_axis
 
     return thin_axis(np.asarray(half_size, dtype=np.float64)) >= 0
+
+
+def room_slabs(depth_m: np.ndarray, camera: Camera, cuboids: list[Cuboid], grid_step: int = 8) -> np.ndarray:
+    """(M,) bool: which cuboids are slabs of the room's shell
+    (:func:`~cuboidcli.fitting.winner.is_room_slab`), judged against the depth map's points on every
+    ``grid_step``-th pixel."""
+    from cuboidcli.fitting.winner import is_room_slab
+
+    grid = camera.backproject(np.where(valid_depth(depth_m), depth_m, 0.0), grid_step).reshape(-1, 3)
+    points = grid[grid[:, 2] > 0].astype(np.float64)
+    return np.array([is_room_slab(points, c.center, c.half_size, c.rotation) for c in cuboids], dtype=bool)
 
 
 def synthetic_reference(world_from_camera) -> Reference:
@@ -230,6 +245,8 @@ class ShapeMetrics:
     """(M,) largest angle of a cuboid axis to its nearest room axis; NaN without a room frame."""
     slab: np.ndarray
     """(M,) bool: the cuboid is a slab (:func:`is_slab`)."""
+    room: np.ndarray
+    """(M,) bool: the cuboid is a slab of the room's shell (:func:`is_room_slab` on the frame's points)."""
     visible_px: np.ndarray
     """(M,) visible face pixels (:func:`support_counts`)."""
     supported_px: np.ndarray
@@ -255,6 +272,16 @@ class ShapeMetrics:
     def slabs_measured(self) -> int:
         """Slabs whose Manhattan angle is defined (the denominator of the aligned share)."""
         return int((self.slab & np.isfinite(self.angle_manhattan_deg)).sum())
+
+    @property
+    def room_slabs_aligned(self) -> int:
+        """Slabs of the room's shell with every axis within :data:`SLAB_ALIGNED_DEG` of the room's axes."""
+        return int((self.room & (self.angle_manhattan_deg <= SLAB_ALIGNED_DEG)).sum())
+
+    @property
+    def room_slabs_measured(self) -> int:
+        """Slabs of the room's shell whose Manhattan angle is defined."""
+        return int((self.room & np.isfinite(self.angle_manhattan_deg)).sum())
 
 
 def shape_metrics(
@@ -304,6 +331,7 @@ def shape_metrics(
         angle_gravity_deg=ang_g,
         angle_manhattan_deg=ang_m,
         slab=np.array([is_slab(c.half_size) for c in cuboids], dtype=bool),
+        room=room_slabs(depth_m, camera, cuboids),
         visible_px=visible,
         supported_px=supported,
     )

@@ -22,6 +22,15 @@ from cuboidcli.geometry.kernels import combine
 #: An aligned winner replaces the free one only while it keeps this share of the free one's gain: a box
 #: that is really tilted (a leaning board, a wrong gravity) stays free rather than fit badly.
 ALIGN_KEEP = 0.8
+#: A slab of the room's shell (a wall, the floor, the ceiling: :func:`is_room_slab`) takes the room's axes, or
+#: stands upright, while it keeps this share of its free gain. Kinect depth bends far walls by several
+#: degrees, so a wall measured 5 m away fits its own tilted plane better than the true, vertical one.
+ROOM_KEEP = 0.5
+#: A slab is part of the room's shell when at most ``ROOM_SHARE`` of the frame's points lie more than
+#: ``ROOM_MARGIN_M`` beyond it (seen from the camera): nothing is behind a wall, under the floor or above
+#: the ceiling, while a table top has the floor under it and a cabinet front the wall behind it.
+ROOM_SHARE = 0.05
+ROOM_MARGIN_M = 0.15
 #: Manhattan axes are preferred over a free yaw unless the free yaw gains this share more.
 MANHATTAN_SLACK = 0.02
 #: A slab turned to the tightest rectangle around its points (:func:`square_slab`) is kept when it gains
@@ -179,6 +188,31 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
     return c, a, values, gain
 
 
+def shrink_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
+    """Pull faces of a cuboid inwards while the inlier-count gain rises: a slab turned onto the room's axes
+    may cover points seen beyond it (through a doorway, in a mirror), which count against it, until its
+    edges move in. A slab's thickness stays. Returns (center, half, values, gain)."""
+    axes = R[0].double()
+    slab_axis = thin_axis(a[0].cpu().numpy())
+    faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
+    values = values_one(pts, c, a, R, sp)
+    for _ in range(config.grow_rounds):
+        moved = False
+        for k, sgn in faces:  # the best of the steps, so that a big one does not cut into the surface
+            moves = [
+                _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp)
+                for step in (0.8, 0.4, 0.2, config.grow_step_m)
+                if float(a[0, k]) - 0.5 * step >= config.a_min
+            ]
+            best = max(moves, key=lambda m: m[3], default=None)
+            if best is not None and best[3] > gain + 1e-6:
+                c, a, values, gain = best
+                moved = True
+        if not moved:
+            break
+    return c, a, values, gain
+
+
 def _move_face(pts, c, a, R, axes, k: int, side: float, delta: float, state, sp: ScoreParams):
     """The box with the half-size along axis k changed by ``delta`` (m) and the centre shifted so that only
     the face on ``side`` (+1 / -1) moves, by 2 * delta; the opposite face stays. Returns (center, half,
@@ -249,8 +283,12 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
     ``MANHATTAN_SLACK`` more). Each candidate keeps the winner's centre and sizes, its faces are
     moved onto the winner's new inliers (:func:`_refit_box`), and it grows like any winner.
     The best candidate replaces the winner when it keeps ``ALIGN_KEEP`` of its gain (a Manhattan one that
-    does not falls back to the upright one). A slab for which neither holds keeps its plane and is turned
-    in it to upright edges (:func:`edge_to_vertical`) when that keeps ``ALIGN_KEEP`` of its gain.
+    does not falls back to the upright one); a slab of the room's shell (:func:`is_room_slab`) needs to keep
+    only ``ROOM_KEEP``, and when its candidate falls short of that, the candidate is also tried on the plane
+    most of its points lie on (:func:`_plane_sweep`) with its edges trimmed off anything seen beyond it
+    (:func:`shrink_cuboid`), grown again, and the better one kept. A slab for which neither holds keeps
+    its plane and is turned in it to upright edges (:func:`edge_to_vertical`) when that keeps
+    ``ALIGN_KEEP`` of its gain.
     Returns (c, a, R, values, gain, kind) with kind "manhattan", "gravity", "tilted" (a slab in its own
     plane, edges turned upright) or "free" (kept as it was).
     """
@@ -263,28 +301,52 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
     r0 = R[0].double().cpu().numpy()
     c0, a0 = c[0].double().cpu().numpy(), a[0].double().cpu().numpy()
 
-    def candidate(kind: str, rot: np.ndarray):
-        cn, an = _refit_box(p, c0, a0, rot, config.a_min)
+    all_pts = pts.double().cpu().numpy()
+    room = is_room_slab(all_pts, c0, a0, r0)
+
+    def place(on: np.ndarray, rot: np.ndarray):
+        cn, an = _refit_box(on, c0, a0, rot, config.a_min)
         c2, a2, R2 = (torch.from_numpy(x)[None].to(c.dtype) for x in (cn, an, rot))
         v2 = values_one(pts, c2, a2, R2, sp)
-        g2 = gain_of(v2, state)
+        return c2, a2, R2, v2, gain_of(v2, state)
+
+    def grown(kind: str, c2, a2, R2, v2, g2):
         if g2 <= 0.0:  # nothing to grow from
             return kind, c2, a2, R2, v2, g2
         c3, a3, v3, g3 = grow_cuboid(pts, c2, a2, R2, state, g2, sp, config)
         return kind, c3, a3, R2, v3, g3
 
+    def candidate(kind: str, rot: np.ndarray):
+        best = grown(kind, *place(p, rot))
+        if room and best[5] < keep * gain:
+            # a wall in bent far depth: the plane most of its points lie on; a doorway or a mirror that
+            # the turned wall now covers: its edges trimmed
+            c2, a2, R2, v2, g2 = place(p, rot)
+            on = _plane_sweep(all_pts, state.cpu().numpy(), p, rot, _thin_of(rot, r0, a0))
+            if on.shape[0] >= config.min_set:
+                alt = place(on, rot)
+                if alt[4] > g2:
+                    c2, a2, R2, v2, g2 = alt
+            c2, a2, v2, g2 = shrink_cuboid(pts, c2, a2, R2, state, g2, sp, config)
+            other = grown(kind, c2, a2, R2, v2, g2)
+            if other[5] > best[5]:
+                best = other
+        return best
+
+    # the room's shell stands on the room's axes even where bent depth fits a tilted plane a little better
+    keep = ROOM_KEEP if room else ALIGN_KEEP
     if alignment.mode == "manhattan" and alignment.axes is not None:
-        best = candidate("manhattan", manhattan_rotation(r0, alignment.axes))
+        best = candidate("manhattan", manhattan_rotation(r0, alignment.axes, thin_axis(a0)))
         slab = thin_axis(best[2][0].cpu().numpy()) >= 0
-        if not (slab and best[5] >= ALIGN_KEEP * gain):  # a slab on the room's axes needs no other
+        if not (slab and best[5] >= keep * gain):  # a slab on the room's axes needs no other
             upright = candidate("gravity", upright_rotation(r0, alignment.up))
             free_yaw_wins = upright[5] > best[5] + MANHATTAN_SLACK * abs(best[5])
-            if (not slab and free_yaw_wins) or best[5] < ALIGN_KEEP * gain:
+            if (not slab and free_yaw_wins) or best[5] < keep * gain:
                 best = upright  # off the room's axes, maybe still upright
     else:
         best = candidate("gravity", upright_rotation(r0, alignment.up))
     kind, c2, a2, R2, v2, g2 = best
-    if g2 >= ALIGN_KEEP * gain:
+    if g2 >= keep * gain:
         return c2, a2, R2, v2, g2, kind
     rot = edge_to_vertical(r0, thin_axis(a0), alignment)
     if rot is not None:
@@ -292,6 +354,66 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
         if g2 >= ALIGN_KEEP * gain:
             return c2, a2, R2, v2, g2, kind
     return c, a, R, values, gain, "free"
+
+
+def _thin_of(rot: np.ndarray, r0: np.ndarray, a0: np.ndarray) -> int:
+    """The axis of ``rot`` nearest to the thickness axis of the slab with axes r0 and half-sizes a0."""
+    n = r0[:, thin_axis(a0)]
+    return int(np.argmax(np.abs(rot.T @ n)))
+
+
+def _plane_sweep(
+    points: np.ndarray, state: np.ndarray, own: np.ndarray, rot: np.ndarray, k: int
+) -> np.ndarray:
+    """The points of the best plane with normal ``rot[:, k]`` near a slab's own points ``own`` (M, 3): over
+    the not yet explained points in the slab's footprint (its in-plane extent, 1st to 99th percentile)
+    and within its depth range along the normal, the plane position holding the most points within
+    :data:`FACE_BAND_M`, in 1 cm steps. A wall measured with a tilt (bent far depth) then stands where most
+    of its points are, instead of at their median."""
+    n = rot[:, k]
+    i, j = [m for m in range(3) if m != k]
+    s_own = own @ n
+    lo, hi = np.percentile(s_own, [1.0, 99.0])
+    uv_own = own @ rot[:, [i, j]]
+    uv_lo, uv_hi = np.percentile(uv_own, [1.0, 99.0], axis=0)
+    uv = points @ rot[:, [i, j]]
+    sp = points @ n
+    sel = (
+        (state < 0.5)
+        & (state >= 0.0)
+        & np.all((uv >= uv_lo) & (uv <= uv_hi), axis=1)
+        & (sp >= lo - FACE_BAND_M)
+        & (sp <= hi + FACE_BAND_M)
+    )
+    cand, sv = points[sel], np.sort(sp[sel])
+    if sv.size == 0:
+        return own
+    offsets = np.arange(lo, hi + 0.005, 0.01)
+    counts = np.searchsorted(sv, offsets + FACE_BAND_M) - np.searchsorted(sv, offsets - FACE_BAND_M)
+    best = offsets[int(np.argmax(counts))]
+    return cand[np.abs(sp[sel] - best) < FACE_BAND_M]
+
+
+def beyond_share(
+    points: np.ndarray, center: np.ndarray, half: np.ndarray, rotation: np.ndarray, k: int
+) -> float:
+    """The share of ``points`` (N, 3) that lie more than :data:`ROOM_MARGIN_M` beyond the far face of a
+    slab with thickness axis ``k`` (the face away from the camera, at the origin), along its normal."""
+    if points.shape[0] == 0:
+        return 0.0
+    n = rotation[:, k]
+    if n @ center < 0:
+        n = -n
+    far = float(n @ center) + float(half[k])
+    return float(np.mean(points @ n > far + ROOM_MARGIN_M))
+
+
+def is_room_slab(points: np.ndarray, center: np.ndarray, half: np.ndarray, rotation: np.ndarray) -> bool:
+    """Whether a box is a slab of the room's shell (wall, floor, ceiling): a slab (:func:`thin_axis`) with
+    at most :data:`ROOM_SHARE` of the frame's ``points`` (N, 3) beyond it (:func:`beyond_share`). This needs
+    no labels; a slab on furniture standing against a wall (a bookcase's side) can pass it too."""
+    k = thin_axis(np.asarray(half, dtype=np.float64))
+    return k >= 0 and beyond_share(points, center, half, rotation, k) <= ROOM_SHARE
 
 
 def edge_to_vertical(rot: np.ndarray, k: int, alignment: Alignment) -> np.ndarray | None:

@@ -318,13 +318,17 @@ def smallest_rotation(src: np.ndarray, dst: np.ndarray) -> np.ndarray:
     return np.eye(3) + s * kx + (1 - c) * kx @ kx
 
 
-def manhattan_rotation(rot: np.ndarray, axes: np.ndarray) -> np.ndarray:
+def manhattan_rotation(rot: np.ndarray, axes: np.ndarray, first: int = -1) -> np.ndarray:
     """The Manhattan-aligned rotation nearest to ``rot``: each of rot's columns becomes the signed axis of
-    ``axes`` (3, 3) closest to it (a permutation with signs), handedness kept."""
+    ``axes`` (3, 3) closest to it (a permutation with signs), handedness kept. Columns are matched most
+    certain first, except that column ``first`` (>= 0: a slab's normal) is matched before all others."""
     dots = rot.T @ axes  # (cuboid axis, room axis)
     out = np.zeros((3, 3))
     used: set[int] = set()
-    for i in np.argsort(-np.abs(dots).max(1)):  # most certain cuboid axis first
+    order = [int(i) for i in np.argsort(-np.abs(dots).max(1))]  # most certain cuboid axis first
+    if first >= 0:
+        order = [first] + [i for i in order if i != first]
+    for i in order:
         j = max((j for j in range(3) if j not in used), key=lambda j: abs(dots[i, j]))
         used.add(j)
         out[:, i] = axes[:, j] * (1.0 if dots[i, j] >= 0 else -1.0)

@@ -211,18 +211,39 @@ def test_no_cuboids_no_shape_values():
 # ---------------------------------------------------------------- pooling
 
 
-def _shape(angles_m, slab, support, err=math.nan, of=""):
+def _shape(angles_m, slab, support, err=math.nan, of="", room=None):
     n = len(angles_m)
     return ShapeMetrics(
         reference="synthetic",
         angle_gravity_deg=np.zeros(n),
         angle_manhattan_deg=np.array(angles_m, dtype=float),
         slab=np.array(slab, dtype=bool),
+        room=np.array(slab if room is None else room, dtype=bool),
         visible_px=np.full(n, 100),
         supported_px=np.array(support),
         gravity_error_deg=err,
         gravity_error_of=of,
     )
+
+
+def test_room_slabs_are_summarised_apart_from_other_slabs():
+    # a: a wall at 0.5 degrees, a shelf at 2.9 (not the shell); b: a far wall at 3.1, a ceiling at 20
+    a = _shape([0.5, 2.9, 10.0], [True, True, False], [100, 50, 0], room=[True, False, False])
+    b = _shape([3.1, 20.0], [True, True], [90, 80], room=[True, True])
+    s = shape_summary([a, b])
+    assert s["slabs"] == 4 and s["slabs_within_3deg_pct"] == pytest.approx(50.0)
+    assert s["room_slabs"] == 3 and s["room_slabs_within_3deg_pct"] == pytest.approx(100 / 3)
+
+
+def test_room_slabs_of_a_rendered_room(nyu_camera):
+    from cuboidcli.evaluation.shape import room_slabs
+    from cuboidcli.synth import render_boxes
+    from tests.conftest import simple_room
+
+    room = simple_room()
+    depth, _ = render_boxes(room, nyu_camera)
+    # floor, back wall and left wall are the shell; the cabinet and the box are no slabs
+    assert room_slabs(depth, nyu_camera, room).tolist() == [True, True, True, False, False]
 
 
 def test_shape_and_gravity_summaries_pool_over_frames():
