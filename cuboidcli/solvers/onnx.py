@@ -24,7 +24,6 @@ from cuboidcli.io.atomic import atomic_write
 from cuboidcli.nets.solver import SolverNet
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.neural import CHUNK_SETS, check_bounds, load_solver_net
-from cuboidcli.weights import default_path
 
 INPUT = "minimal_sets"
 OUTPUTS = ("centers", "half_sizes", "rotations")
@@ -97,9 +96,10 @@ def export_net_onnx(
     return atomic_write(out_path, write)
 
 
-def export_solver_onnx(weights_path: str | None, out_path: str, opset: int = 17) -> Path:
-    """Export solver weights (None = the default, ``models/solver_v2.pt``) to ONNX; returns the path."""
-    path = Path(weights_path) if weights_path is not None else default_path("solver")
+def export_solver_onnx(weights_path: str | os.PathLike, out_path: str, opset: int = 17) -> Path:
+    """Export a solver weights file (``cuboids export --onnx`` passes ``models/solver_v2.pt`` by default) to
+    ONNX; returns the path."""
+    path = Path(weights_path)
     net = load_solver_net(path, "cpu")
     sha = hashlib.sha256(path.read_bytes()).hexdigest()
     return export_net_onnx(net, out_path, opset, meta={"weights": path.name, "weights_sha256": sha})
