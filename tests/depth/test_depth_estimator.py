@@ -131,6 +131,8 @@ def test_builtin_missing_weights(tmp_path, monkeypatch):
     with pytest.raises(FileNotFoundError, match="depth weights .* not found") as info:
         BuiltinDepthEstimator(tmp_path / "nope.pt")
     assert "\n" not in str(info.value)
+    with pytest.raises(TypeError, match="weights file or a loaded net"):
+        BuiltinDepthEstimator()  # the default weights are the factories' choice (make_depth_estimator)
     monkeypatch.setenv("CUBOIDS_DEPTH_WEIGHTS", str(tmp_path / "missing.pt"))
     with pytest.raises(FileNotFoundError):
         make_depth_estimator()
