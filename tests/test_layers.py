@@ -79,6 +79,7 @@ FACTORY_ONLY = (
     "cuboidcli.solvers.numerical",
     "cuboidcli.solvers.neural",
     "cuboidcli.solvers.onnx",
+    "cuboidcli.solvers.onnx_export",
     "cuboidcli.sampling.learned",
     "cuboidcli.depth",
     "cuboidcli.nets",

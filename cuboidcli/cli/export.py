@@ -77,7 +77,7 @@ def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
         fail(f"--weights {weights}: not found")
     with user_errors():
         try:
-            from cuboidcli.solvers.onnx import export_solver_onnx
+            from cuboidcli.solvers.onnx_export import export_solver_onnx
             from cuboidcli.weights import default_path
 
             source = default_path("solver") if weights is None else weights
