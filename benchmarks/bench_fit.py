@@ -63,9 +63,9 @@ def main() -> None:
 
     import torch
 
+    from cuboidcli.factories import make_sampler, make_solver
     from cuboidcli.fitting.config import FitConfig
-    from cuboidcli.fitting.pipeline import ensure_compiled, fit_depth, make_solver
-    from cuboidcli.sampling import make_sampler
+    from cuboidcli.fitting.pipeline import ensure_compiled, fit_depth
 
     t = time.perf_counter()
     ensure_compiled()

@@ -73,8 +73,9 @@ def main() -> None:
     import numba
     import torch
 
+    from cuboidcli.factories import make_solver
     from cuboidcli.fitting.config import FitConfig
-    from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
+    from cuboidcli.fitting.pipeline import ensure_compiled
     from cuboidcli.nets.checkpoint import parameter_count
 
     if max(thread_counts) > numba.config.NUMBA_NUM_THREADS:

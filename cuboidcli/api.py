@@ -204,8 +204,8 @@ class Fitter:
         device: str = "auto",
         **settings,
     ) -> None:
-        from cuboidcli.fitting.pipeline import ensure_compiled, make_solver
-        from cuboidcli.sampling import make_sampler
+        from cuboidcli.factories import make_sampler, make_solver
+        from cuboidcli.fitting.pipeline import ensure_compiled
         from cuboidcli.weights import default_weights_dir, shipped_path
 
         unknown = sorted(set(settings) - set(SETTINGS))
@@ -259,14 +259,14 @@ class Fitter:
         return self._fit(depth_m, camera, rgb, meta, None, seed, progress)
 
     def fit_frame(self, frame, *, progress=None) -> Result:
-        """Fit a frame read by :func:`cuboidcli.fitting.frame.load_frame` (what ``cuboids fit`` does); its
+        """Fit a frame read by :func:`cuboidcli.frame.load_frame` (what ``cuboids fit`` does); its
         file names and, for RGB input, the depth estimation time go into the result."""
         f = frame
         return self._fit(f.depth_m, f.camera, f.rgb, f.meta, f.depth_seconds, None, progress)
 
     def _fit(self, depth_m, camera, rgb, meta, depth_seconds, seed, progress) -> Result:
-        from cuboidcli.fitting.frame import make_result
         from cuboidcli.fitting.pipeline import fit_depth
+        from cuboidcli.frame import make_result
 
         config = self.config if seed is None else replace(self.config, seed=int(seed))
         cuboids, info = fit_depth(
@@ -360,7 +360,7 @@ def estimate_depth(
     network (``model`` None: the shipped weights; a .pt checkpoint of it; or a metric ONNX model). The
     network is loaded once per process."""
     from cuboidcli.depth import estimate_depth as _estimate
-    from cuboidcli.fitting.frame import DepthModelOptions, depth_estimator
+    from cuboidcli.factories import DepthModelOptions, depth_estimator
     from cuboidcli.weights import shipped_path
 
     rgb = np.asarray(rgb)

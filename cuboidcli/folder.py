@@ -28,7 +28,7 @@ class FolderJob:
     preset: str | None = None
     depth_scale: float | None = None
     depth_model: object = None
-    """:class:`~cuboidcli.fitting.frame.DepthModelOptions` for RGB input (the depth comes from the image);
+    """:class:`~cuboidcli.factories.DepthModelOptions` for RGB input (the depth comes from the image);
     None for depth maps."""
     glb: bool = False
     ply: bool = False
@@ -58,7 +58,7 @@ def fitter_for(config: FitConfig, weights: str | None, onnx: str | None):
 
 def is_complete(out_json: Path, job: FolderJob) -> bool:
     """The frame's outputs exist and its JSON is a valid "cuboids/1" result fitted with ``job``'s settings."""
-    from cuboidcli.fitting.frame import same_settings
+    from cuboidcli.frame import same_settings
     from cuboidcli.io.result import read_result
 
     if not all(p.is_file() for p in job.outputs(out_json)):
@@ -77,7 +77,7 @@ def fit_file(job: FolderJob, source: str, out_json: str) -> Outcome:
     (cuboids, seconds, depth source)."""
     import warnings
 
-    from cuboidcli.fitting.frame import load_frame
+    from cuboidcli.frame import load_frame
 
     name = Path(source).name
     try:

@@ -18,10 +18,10 @@ import numpy as np
 from cuboidcli.camera import Camera
 from cuboidcli.evaluation.runner import load_frames
 from cuboidcli.export.overlay import background_image, draw_overlay, make_panel, raycast, write_png
+from cuboidcli.factories import make_sampler, make_solver
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_depth, make_solver
+from cuboidcli.fitting.pipeline import fit_depth
 from cuboidcli.io.depth import read_depth
-from cuboidcli.sampling import make_sampler
 
 SAMPLE = Path(__file__).resolve().parents[1] / "cuboidcli" / "data" / "sample"
 

@@ -17,12 +17,12 @@ import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.evaluation.metrics import OBJECT_EXPLAIN_PCT
+from cuboidcli.factories import make_sampler, make_solver
 from cuboidcli.fitting.assign import assign_points
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_depth, make_solver
+from cuboidcli.fitting.pipeline import fit_depth
 from cuboidcli.io.depth import read_depth
 from cuboidcli.io.result import read_result
-from cuboidcli.sampling import make_sampler
 from cuboidcli.synth import render_boxes
 
 SAMPLE = Path(__file__).resolve().parents[1] / "cuboidcli" / "data" / "sample"

@@ -13,9 +13,9 @@ import numpy as np
 
 from cuboidcli.evaluation.runner import load_frames
 from cuboidcli.export.overlay import render_images, write_png
+from cuboidcli.factories import make_sampler, make_solver
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_depth, make_solver
-from cuboidcli.sampling import make_sampler
+from cuboidcli.fitting.pipeline import fit_depth
 
 
 def main() -> None:

@@ -14,10 +14,11 @@ import cv2
 import numpy as np
 import torch
 
+from cuboidcli.factories import make_sampler, make_solver
 from cuboidcli.fitting.pipeline import prepare_points
 from cuboidcli.io.atomic import atomic_write_bytes
 from cuboidcli.io.dataset import list_frames
-from cuboidcli.sampling import SamplingContext, make_sampler
+from cuboidcli.sampling import SamplingContext
 
 
 def main() -> None:
@@ -38,7 +39,7 @@ def main() -> None:
         from cuboidcli.fitting.pipeline import fit_depth
 
         config = FitConfig(sampler="learned", max_cuboids=args.after, hypotheses=1024)
-        cuboids, info = fit_depth(depth, frame.camera, config, sampler=sampler)
+        cuboids, info = fit_depth(depth, frame.camera, config, solver=make_solver(config), sampler=sampler)
         state = torch.from_numpy(info.state).float()
         print(f"state after {len(cuboids)} cuboid(s)")
     ctx = SamplingContext(prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, state, args.after)

@@ -10,6 +10,21 @@ from cuboidcli.cuboid import Cuboid
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 
 
+def fit_named(depth_m, camera, config=None, *, weights=None, **parts):
+    """:func:`cuboidcli.fitting.pipeline.fit_depth` with the solver and sampler ``config`` names, built by
+    :mod:`cuboidcli.factories` (the learned ones from ``weights``), unless ``parts`` gives them."""
+    from cuboidcli.factories import make_sampler, make_solver
+    from cuboidcli.fitting.config import FitConfig
+    from cuboidcli.fitting.pipeline import fit_depth
+
+    config = config or FitConfig()
+    if "solver" not in parts:
+        parts["solver"] = make_solver(config, weights, None, config.device)
+    if "sampler" not in parts:
+        parts["sampler"] = make_sampler(config.sampler, weights, config.device)
+    return fit_depth(depth_m, camera, config, **parts)
+
+
 def yaw(angle: float) -> np.ndarray:
     """Rotation about the camera's y axis (vertical in the OpenCV frame)."""
     c, s = math.cos(angle), math.sin(angle)

@@ -77,10 +77,10 @@ def test_result_outputs(room_result, tmp_path):
 def test_a_fitter_is_built_once_and_gives_what_fit_gives(room_depth, nyu_camera, room_result, monkeypatch):
     depth, _ = room_depth
     fitter = cb.Fitter(**QUICK)
-    from cuboidcli.fitting import pipeline
+    from cuboidcli import factories
 
     built = []
-    monkeypatch.setattr(pipeline, "make_solver", lambda *a, **k: built.append(1))  # must not be called again
+    monkeypatch.setattr(factories, "make_solver", lambda *a, **k: built.append(1))  # must not be called again
     first = fitter.fit(depth, nyu_camera, seed=0)
     assert [c.to_json(i) for i, c in enumerate(first.cuboids)] == [
         c.to_json(i) for i, c in enumerate(room_result.cuboids)

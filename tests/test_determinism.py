@@ -7,7 +7,7 @@ import numpy as np
 import torch
 
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_depth
+from tests.conftest import fit_named
 
 
 def _fit(depth, camera, threads: int):
@@ -15,7 +15,7 @@ def _fit(depth, camera, threads: int):
     torch.set_num_threads(threads)
     numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
     try:
-        return fit_depth(depth, camera, FitConfig(seed=11, hypotheses=384, max_cuboids=4))[0]
+        return fit_named(depth, camera, FitConfig(seed=11, hypotheses=384, max_cuboids=4))[0]
     finally:
         torch.set_num_threads(torch_before)
         numba.set_num_threads(numba_before)

@@ -5,22 +5,25 @@ level and inside functions alike (a lazy import is still a dependency). Each mod
 named by its first component below ``cuboidcli`` (``cuboidcli.fitting.pipeline`` -> ``fitting``,
 ``cuboidcli.weights`` -> ``weights``); the units are ordered in :data:`LAYERS`, lowest first:
 
-====  ===============================  =====================================================================
-rank  units                            what they hold
-====  ===============================  =====================================================================
-0     cuboidcli (root), geometry       ``__version__``; torch and numba kernels, rotations, gravity
-1     camera, cuboid                   intrinsics; the oriented box
-2     io                               readers and writers: depth maps, results, datasets, the weights reader
-3     nets                             the networks a user runs (sampler, solver, depth) and their one format
-4     weights                          the weights registry: names, shipped bundles, defaults, hashes
-5     solvers, sampling, depth         cuboid solvers; samplers and minimal sets; depth from RGB
-6     fitting                          the estimator: config, pipeline, scoring, winner, frame loading
-7     export, synth                    GLB / PLY / OBJ / PNG outputs; synthetic scenes and datasets
-8     api, scaleout, folder            the Python API; many frames on workers or Ray; folders of frames
-9     evaluation                       metrics, datasets, runs
-10    learn                            training: trainers, losses, data (training only)
-11    cli                              the ``cuboids`` command: parses, prints, calls the library
-====  ===============================  =====================================================================
+====  =====================================  ===============================================================
+rank  units                                  what they hold
+====  =====================================  ===============================================================
+0     cuboidcli (root), geometry             ``__version__``; torch and numba kernels, rotations, gravity
+1     camera, cuboid                         intrinsics; the oriented box
+2     io                                     readers and writers: depth maps, results, datasets, weights files
+3     nets                                   the networks a user runs (sampler, solver, depth), one format
+4     solvers, sampling, depth               the parts of a fit: cuboid solvers, samplers, depth from RGB;
+                                             each takes a loaded net or a weights file
+5     fitting                                the estimator: config, pipeline, scoring, winner, assignment;
+                                             it takes built parts (protocols), no factories, no weights
+6     weights                                the weights registry: names, shipped bundles, defaults, hashes
+7     export, synth                          GLB / PLY / OBJ / PNG outputs; synthetic scenes and datasets
+8     factories, frame, api, scaleout,       parts built by name with their weights; frame loading; the
+      folder                                 Python API; many frames on workers or Ray; folders of frames
+9     evaluation                             metrics, datasets, runs
+10    learn                                  training: trainers, losses, data (training only)
+11    cli                                    the ``cuboids`` command: parses, prints, calls the library
+====  =====================================  ===============================================================
 
 A module may import its own unit, units of its rank and units of lower ranks. Within that, the module
 graph must have no cycle, and neither may the graph of units of one rank (``solvers`` <-> ``sampling``).
@@ -30,9 +33,11 @@ first use) are not import statements and are not checked here.
 
 README.md's "Package layout" section shows the same table (:func:`test_readme_shows_the_layers`).
 
-Two more rules: inference never imports training code (only ``learn`` and ``cli`` import ``cuboidcli.learn``
-and ``cuboidcli.depth.train``), and the library outside ``cuboidcli/cli`` never imports the command-line
-packages (typer, rich, click).
+More rules: inference never imports training code (only ``learn`` and ``cli`` import ``cuboidcli.learn``);
+the library outside ``cuboidcli/cli`` never imports the command-line packages (typer, rich, click); the
+parts and the estimator never look weights up (no module of :data:`NO_WEIGHTS` imports
+``cuboidcli.weights``), and the estimator knows the parts by their protocols alone (``fitting`` imports no
+concrete solver, sampler, depth estimator or network: :data:`FACTORY_ONLY`).
 """
 
 from __future__ import annotations
@@ -50,11 +55,11 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("camera", "cuboid"),
     ("io",),
     ("nets",),
-    ("weights",),
     ("solvers", "sampling", "depth"),
     ("fitting",),
+    ("weights",),
     ("export", "synth"),
-    ("api", "scaleout", "folder"),
+    ("factories", "frame", "api", "scaleout", "folder"),
     ("evaluation",),
     ("learn",),
     ("cli",),
@@ -62,10 +67,23 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 RANK = {unit: rank for rank, units in enumerate(LAYERS) for unit in units}
 
 #: Training code: imported only by the units in TRAINING_USERS (and by itself).
-TRAINING = ("cuboidcli.learn", "cuboidcli.depth.train")
+TRAINING = ("cuboidcli.learn",)
 TRAINING_USERS = ("learn", "cli")
 #: Command-line packages the library (everything but cuboidcli.cli) never imports.
 CLI_PACKAGES = ("typer", "rich", "click")
+#: Units that take a loaded network or a weights file and never ask the weights registry which one.
+NO_WEIGHTS = ("nets", "solvers", "sampling", "depth", "fitting")
+#: Modules only the factories build from (and training and the tests use directly); the estimator
+#: (``fitting``) receives what they make through the CuboidSolver and Sampler protocols.
+FACTORY_ONLY = (
+    "cuboidcli.solvers.numerical",
+    "cuboidcli.solvers.neural",
+    "cuboidcli.solvers.onnx",
+    "cuboidcli.solvers.onnx_export",
+    "cuboidcli.sampling.learned",
+    "cuboidcli.depth",
+    "cuboidcli.nets",
+)
 
 
 @dataclass(frozen=True)
@@ -248,12 +266,36 @@ def test_the_library_never_imports_the_command_line_packages():
     assert not wrong, "the library imports command-line packages:\n" + "\n".join(wrong)
 
 
+def test_the_parts_and_the_estimator_never_look_weights_up():
+    assert all(RANK[u] < RANK["weights"] for u in NO_WEIGHTS)  # an import would point up, too
+    wrong = [
+        str(imp)
+        for imp in package_imports()
+        if imp.target == "cuboidcli.weights" and unit(imp.source) in NO_WEIGHTS
+    ]
+    assert not wrong, "the weights registry imported below it:\n" + "\n".join(wrong)
+
+
+def test_the_estimator_builds_no_parts():
+    def built_by_factories(module: str) -> bool:
+        return any(module == m or module.startswith(m + ".") for m in FACTORY_ONLY)
+
+    wrong = [
+        str(imp)
+        for imp in package_imports()
+        if unit(imp.source) == "fitting" and built_by_factories(imp.target)
+    ]
+    assert not wrong, "fitting builds a part itself (that is cuboidcli.factories' work):\n" + "\n".join(wrong)
+
+
 def test_the_walk_sees_lazy_and_type_only_imports():
-    """The checks above are only as good as the walk: it finds imports inside functions (the learned
-    sampler is built lazily by make_sampler) and marks those under TYPE_CHECKING."""
+    """The checks above are only as good as the walk: it finds imports inside functions (the minimal-set
+    proposals are imported when a batch is drawn, the learned sampler when a factory builds it) and marks
+    those under TYPE_CHECKING."""
     found = {(imp.source, imp.target): imp for imp in package_imports()}
-    lazy = found[("cuboidcli.sampling", "cuboidcli.sampling.learned")]
-    assert not lazy.type_only
+    assert not found[("cuboidcli.sampling", "cuboidcli.sampling.proposals")].type_only
+    assert not found[("cuboidcli.factories", "cuboidcli.sampling.learned")].type_only
+    assert found[("cuboidcli.sampling.learned", "cuboidcli.sampling")].type_only
     assert found[("cuboidcli.evaluation.outputs", "cuboidcli.evaluation.runner")].type_only
     assert ("cuboidcli.fitting.pipeline", "cuboidcli.sampling") in found
     assert ("cuboidcli.io.result", "cuboidcli") in found  # from cuboidcli import __version__

@@ -1,5 +1,5 @@
-"""Depth errors of a depth estimator on an RGB-D dataset folder: the command behind
-``python -m cuboidcli.depth.evaluate DATA [--model PATH] [--split NAME] [--filled] [--out FILE.json]``.
+"""Depth errors of a depth estimator on an RGB-D dataset folder:
+``python -m cuboidcli.cli.depth_evaluate DATA [--model PATH] [--split NAME] [--filled] [--out FILE.json]``.
 
 The work is :func:`cuboidcli.depth.evaluate.evaluate_dataset`; this module parses the options and prints one
 line per frame and their mean on stdout.
@@ -14,7 +14,7 @@ import typer
 
 from cuboidcli.cli.common import fail, run_as_module, user_errors
 
-PROG = "python -m cuboidcli.depth.evaluate"
+PROG = "python -m cuboidcli.cli.depth_evaluate"
 
 
 def evaluate_depth_cmd(
@@ -27,8 +27,8 @@ def evaluate_depth_cmd(
     out: Path | None = typer.Option(None, "--out", help="Write the report as JSON."),
 ) -> None:
     """Depth errors (AbsRel, RMSE, delta < 1.25) of a depth estimator on an RGB-D dataset folder."""
-    from cuboidcli.depth.estimator import make_depth_estimator
     from cuboidcli.depth.evaluate import evaluate_dataset
+    from cuboidcli.factories import make_depth_estimator
     from cuboidcli.io.atomic import atomic_write_json
     from cuboidcli.weights import resolve
 
@@ -49,6 +49,10 @@ def evaluate_depth_cmd(
         atomic_write_json(out, report)
 
 
-def module_main(argv: list[str] | None = None) -> None:
-    """``python -m cuboidcli.depth.evaluate ARGV`` (``argv`` None: the process's arguments)."""
+def main(argv: list[str] | None = None) -> None:
+    """``python -m cuboidcli.cli.depth_evaluate ARGV`` (``argv`` None: the process's arguments)."""
     run_as_module(evaluate_depth_cmd, argv, PROG)
+
+
+if __name__ == "__main__":
+    main()

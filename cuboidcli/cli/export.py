@@ -77,9 +77,11 @@ def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
         fail(f"--weights {weights}: not found")
     with user_errors():
         try:
-            from cuboidcli.solvers.onnx import export_solver_onnx
+            from cuboidcli.solvers.onnx_export import export_solver_onnx
+            from cuboidcli.weights import default_path
 
-            path = export_solver_onnx(None if weights is None else str(weights), str(onnx), opset=opset)
+            source = default_path("solver") if weights is None else weights
+            path = export_solver_onnx(str(source), str(onnx), opset=opset)
         except ImportError as e:
             fail(
                 f"ONNX export is unavailable ({e}); onnx and onnxruntime are dependencies of cuboids: "

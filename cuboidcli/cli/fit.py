@@ -57,7 +57,7 @@ class FitJob:
 
     def run(self, depth: Path | None, image: Path | None, progress=None):
         """Fit one frame; returns the api Result."""
-        from cuboidcli.fitting.frame import load_frame
+        from cuboidcli.frame import load_frame
 
         frame = load_frame(
             depth, image, self.intrinsics, self.preset, self.depth_scale, depth_model=self.depth_model
@@ -219,7 +219,7 @@ def fit(
             fail(str(e))
         job = FitJob(intrinsics, preset, depth_scale, fitter, glb, ply, overlay, with_points)
         if depth is None:
-            from cuboidcli.fitting.frame import DepthModelOptions
+            from cuboidcli.factories import DepthModelOptions
 
             job.depth_model = DepthModelOptions(
                 None if depth_model is None else str(shipped_path(depth_model)),

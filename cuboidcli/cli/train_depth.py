@@ -1,15 +1,13 @@
 """``cuboids train depth``: train the built-in monocular depth network on an RGB-D dataset folder.
 
 Registered on the ``train`` sub-command group by :func:`register`; the training itself lives in
-:mod:`cuboidcli.learn.depth_train`. ``python -m cuboidcli.depth.train ARGS``, the older entry point, runs
-this command with ``--json`` (:func:`module_main`).
+:mod:`cuboidcli.learn.depth_train`.
 """
 
 from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import typer
@@ -20,7 +18,6 @@ from cuboidcli.cli.common import (
     fail,
     no_empty_folder,
     resolve_device,
-    run_as_module,
     user_errors,
 )
 
@@ -200,13 +197,6 @@ def train_depth_cmd(
 
 def _print_json(record: dict) -> None:
     typer.echo(json.dumps(record))
-
-
-def module_main(argv: list[str] | None = None) -> None:
-    """``python -m cuboidcli.depth.train ARGV``: this command with ``--json`` (``argv`` None: the process's
-    arguments). Returns when it succeeds; exits with the command's status otherwise."""
-    args = sys.argv[1:] if argv is None else list(argv)
-    run_as_module(train_depth_cmd, [*args, "--json"], "python -m cuboidcli.depth.train")
 
 
 def register(train_app: typer.Typer) -> None:

@@ -5,8 +5,9 @@ uint8 RGB image and ``camera`` its intrinsics (``camera.width x camera.height ==
 metres, float32 ``(H, W)`` at the image's full resolution; 0 marks pixels without a usable estimate. The
 fitting pipeline subsamples this map to its fitting grid (every 8th pixel) itself.
 
-- :class:`BuiltinDepthEstimator`: the project's own network (:mod:`cuboidcli.nets.depth`), weights in
-  ``models/depth_v3.pt``.
+- :class:`BuiltinDepthEstimator`: the project's own network (:mod:`cuboidcli.nets.depth`), from a weights
+  file or a loaded net (the default file, ``models/depth_v3.pt``, is the weights registry's:
+  :func:`cuboidcli.factories.make_depth_estimator` builds an estimator for a ``--depth-model`` value).
 - :class:`OnnxDepthEstimator`: a user's monocular network exported to ONNX. Expected tensors:
 
   * input: one tensor ``(1, 3, h, w)`` float32, RGB order, ``(rgb / 255 - mean) / std`` per channel
@@ -34,7 +35,6 @@ import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.nets.depth import IMAGENET_MEAN, IMAGENET_STD, DepthNet, net_from_checkpoint
-from cuboidcli.weights import resolve
 
 KINDS = ("metric", "relative", "relative-inverse")
 
@@ -101,10 +101,12 @@ class BuiltinDepthEstimator:
         device: str | torch.device = "cpu",
         net: DepthNet | None = None,
     ) -> None:
+        if net is None and weights is None:
+            raise TypeError("BuiltinDepthEstimator needs a weights file or a loaded net")
         self.device = torch.device(device)
         self.path = None
         if net is None:
-            self.path = resolve("depth", weights)  # None: models/depth_v3.pt or $CUBOIDS_DEPTH_WEIGHTS
+            self.path = Path(weights)
             if not self.path.is_file():
                 raise FileNotFoundError(
                     f"depth weights {self.path} not found; pass a .pt file written by the depth trainer "
@@ -306,55 +308,12 @@ def fit_scale_shift(
     return float(scale), float(shift), n
 
 
-def make_depth_estimator(
-    model: str | os.PathLike | None = None,
-    kind: str = "metric",
-    scale: float | None = None,
-    shift: float | None = None,
-    ref_depth: np.ndarray | None = None,
-    device: str | torch.device = "cpu",
-) -> DepthEstimator:
-    """The estimator for a ``--depth-model`` option: None = the built-in network (models/depth_v3.pt), a
-    ``.pt`` checkpoint of the built-in network, or an ``.onnx`` model with its ``kind`` and alignment."""
-    if model is None or Path(model).suffix.lower() == ".pt":
-        if kind != "metric" or scale is not None or shift is not None or ref_depth is not None:
-            raise ValueError(
-                "the built-in depth network predicts metric depth; kind, scale, shift and a partial depth "
-                "map apply to an ONNX model (--depth-model model.onnx)"
-            )
-        return BuiltinDepthEstimator(model, device=device)
-    if Path(model).suffix.lower() == ".onnx":
-        return OnnxDepthEstimator(model, kind=kind, scale=scale, shift=shift, ref_depth=ref_depth)
-    raise ValueError(
-        f"depth model {model}: expected an .onnx file (or a .pt checkpoint of the built-in network)"
-    )
-
-
-def depth_for_fit(
-    rgb: np.ndarray,
-    camera: Camera,
-    model: str | os.PathLike | None = None,
-    kind: str = "metric",
-    scale: float | None = None,
-    shift: float | None = None,
-    partial_depth: np.ndarray | None = None,
-    device: str | torch.device = "cpu",
-    timing: dict | None = None,
-) -> tuple[np.ndarray, str]:
-    """Depth for ``fit_depth`` from an RGB image: ``(depth_m float32 (H, W), one-line description)``.
-
-    rgb: (H, W, 3) uint8 RGB; camera: its intrinsics. ``model`` etc. as :func:`make_depth_estimator`;
-    ``partial_depth`` (H, W) metres, 0 = unknown, aligns a relative model's output. ``timing``: a dict
-    that receives ``"depth"``, the seconds of the estimation itself (building the estimator excluded).
-    """
-    estimator = make_depth_estimator(model, kind, scale, shift, partial_depth, device)
-    return estimate_depth(estimator, rgb, camera, timing)
-
-
 def estimate_depth(
     estimator: DepthEstimator, rgb: np.ndarray, camera: Camera, timing: dict | None = None
 ) -> tuple[np.ndarray, str]:
-    """As :func:`depth_for_fit` with an estimator built once (a folder of images reuses it)."""
+    """Depth for ``fit_depth`` from an RGB image with a built estimator: ``(depth_m float32 (H, W), one-line
+    description)``. ``timing``: a dict that receives ``"depth"``, the seconds of the estimation itself.
+    Raises ValueError when the estimate has no positive depth."""
     t0 = time.perf_counter()
     depth = estimator.predict(rgb, camera)
     if timing is not None:

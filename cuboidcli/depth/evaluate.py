@@ -3,12 +3,11 @@
 Per frame: AbsRel, RMSE (m) and delta < 1.25 over the valid ground-truth pixels (raw depth: holes excluded,
 no crop, no depth cap), then their means over frames. In flat folders that hold both ``<name>_depth_raw``
 and ``<name>_depth_filled``, the raw map is the ground truth by default: in-painted depth is itself an
-estimate. ``python -m cuboidcli.depth.evaluate DATA`` prints them (:mod:`cuboidcli.cli.depth_evaluate`).
+estimate. ``python -m cuboidcli.cli.depth_evaluate DATA`` prints them.
 """
 
 from __future__ import annotations
 
-import importlib
 from dataclasses import replace
 from pathlib import Path
 
@@ -53,13 +52,3 @@ def evaluate_dataset(estimator, root: str | Path, split: str | None = None, raw:
     report["ground_truth"] = {f.name: f.depth_path.name for f in frames}
     return report
 
-
-def main(argv: list[str] | None = None) -> None:
-    """``python -m cuboidcli.depth.evaluate DATA [--model PATH] [--split NAME] [--filled] [--out FILE.json]``:
-    the command line is :mod:`cuboidcli.cli.depth_evaluate`, reached through :func:`importlib.import_module`
-    when it runs (the depth package sits below ``cli`` in the import layers and does not import it)."""
-    importlib.import_module("cuboidcli.cli.depth_evaluate").module_main(argv)
-
-
-if __name__ == "__main__":
-    main()

@@ -183,8 +183,7 @@ def _missing_split_frames(root: Path, split: str | None, frames: list) -> list[M
 def check_estimator(config: FitConfig, weights_dir: Path | None = None) -> None:
     """Build the configured solver and sampler once, so that a bad setting or missing weights fails before
     any frame is evaluated (raises InputError with a one-line message)."""
-    from cuboidcli.fitting.pipeline import make_solver
-    from cuboidcli.sampling import make_sampler
+    from cuboidcli.factories import make_sampler, make_solver
 
     try:
         make_solver(config, weights_dir, None, config.device)
@@ -216,7 +215,7 @@ def _estimated_depth(frame: EvalFrame, depth_model: Path | None) -> tuple[np.nda
 
     The estimator is built once per process (loading it is start-up, not fitting time)."""
     from cuboidcli.depth import estimate_depth
-    from cuboidcli.fitting.frame import DepthModelOptions, depth_estimator
+    from cuboidcli.factories import DepthModelOptions, depth_estimator
 
     rgb = frame.rgb() if hasattr(frame, "rgb") else None
     if rgb is None:
@@ -245,9 +244,9 @@ def _fit_and_save(
     With ``rgb`` the estimator fits the depth predicted from the frame's image (``depth_m`` is unused)
     and ``timing_s["total"]`` includes the depth estimation (``timing_s["depth"]``).
     """
-    from cuboidcli.fitting.frame import make_result
     from cuboidcli.fitting.pipeline import fit_depth
     from cuboidcli.folder import fitter_for
+    from cuboidcli.frame import make_result
 
     depth_s = None
     if rgb:
@@ -375,7 +374,7 @@ def saved_fit_path(save_fits_dir: Path, seed: int, name: str) -> Path:
 
 def _reusable_fit(path: Path, config: FitConfig, weights_dir: Path | None) -> bool:
     """A saved fit that a rerun may score instead of fitting: valid "cuboids/1", the same settings."""
-    from cuboidcli.fitting.frame import same_settings
+    from cuboidcli.frame import same_settings
 
     try:
         saved = read_result(path)

@@ -2,7 +2,9 @@
 per step, until the best hypothesis no longer raises the occlusion-aware inlier count by Theta.
 
 Entry points: :func:`fit_depth` (a depth map and its camera) and :func:`fit_points` (prepared points).
-Both return ``(cuboids, FitInfo)``.
+Both take a built solver (:class:`~cuboidcli.solvers.base.CuboidSolver`) and sampler
+(:class:`~cuboidcli.sampling.Sampler`) and return ``(cuboids, FitInfo)``; building them by name, with
+their weights, is :mod:`cuboidcli.factories`' work.
 """
 
 from __future__ import annotations
@@ -10,7 +12,6 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 import torch
@@ -28,9 +29,8 @@ from cuboidcli.sampling import (
     SamplingContext,
     draw_hypotheses,
     local_fraction_of,
-    make_sampler,
 )
-from cuboidcli.solvers.base import CuboidSolver, SizeBounds, solve_upright
+from cuboidcli.solvers.base import CuboidSolver, solve_upright
 
 INVALID = -3
 
@@ -105,32 +105,6 @@ def prepare_points(
         depth_grid=torch.from_numpy(depth_grid.astype(np.float32)).to(device),
         focal_cells=(camera.fx / grid_step, camera.fy / grid_step),
     )
-
-
-def make_solver(
-    config: FitConfig,
-    weights_dir: str | Path | None = None,
-    onnx_path: str | Path | None = None,
-    device: str = "cpu",
-) -> CuboidSolver:
-    bounds = SizeBounds(config.a_min, config.a_max)
-    if config.solver == "numerical":
-        from cuboidcli.solvers.numerical import NumericalSolver
-
-        return NumericalSolver(bounds=bounds, lr=config.solver_lr, iters=config.solver_iters)
-    if config.solver == "neural":
-        from cuboidcli.solvers.neural import NeuralSolver, resolve_weights
-        from cuboidcli.weights import weights_for
-
-        weights = resolve_weights(weights_for("solver", weights_dir))
-        return NeuralSolver(weights=weights, device=device, bounds=bounds)
-    if config.solver == "onnx":
-        from cuboidcli.solvers.onnx import OnnxSolver
-
-        if onnx_path is None:
-            raise ValueError("the onnx solver needs an ONNX file (--onnx solver.onnx)")
-        return OnnxSolver(str(onnx_path), bounds)
-    raise ValueError(f"unknown solver {config.solver!r}; choose numerical, neural or onnx")
 
 
 _COMPILED = False
@@ -354,13 +328,13 @@ def fit_depth(
     camera: Camera,
     config: FitConfig | None = None,
     *,
-    solver: CuboidSolver | None = None,
-    sampler: Sampler | None = None,
-    weights_dir: str | Path | None = None,
-    onnx_path: str | Path | None = None,
+    solver: CuboidSolver,
+    sampler: Sampler,
     progress: ProgressFn | None = None,
 ) -> tuple[list[Cuboid], FitInfo]:
-    """Fit cuboids to a depth map (H, W) in metres (0/NaN/inf = missing) seen by ``camera``.
+    """Fit cuboids to a depth map (H, W) in metres (0/NaN/inf = missing) seen by ``camera``, with a built
+    ``solver`` and ``sampler`` (:mod:`cuboidcli.factories` builds them by name; :class:`cuboidcli.api.Fitter`
+    does both).
 
     Returns the selected cuboids (in selection order, each with its ``inlier_gain``) and a FitInfo.
     Deterministic for a given ``config.seed``.
@@ -369,8 +343,6 @@ def fit_depth(
     device = config.device
     if device == "cpu":
         ensure_compiled()
-    solver = solver or make_solver(config, weights_dir, onnx_path, device)
-    sampler = sampler or make_sampler(config.sampler, weights_dir, device)
     t0 = time.perf_counter()
     prep = prepare_points(depth_m, camera, config.grid_step, device)
     timing = {"prepare": time.perf_counter() - t0}

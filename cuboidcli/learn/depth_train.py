@@ -17,8 +17,7 @@ The loop is :func:`cuboidcli.learn.trainer.run_job`'s (:class:`DepthJob`: epoch-
 Files in ``out_dir``: ``config.json``, ``log.jsonl`` (one record per logged step, validation and epoch),
 ``last.pt`` (training state: weights, optimizer, generator state, epoch; resume with it) and ``best.pt``
 (weights-only checkpoint with the lowest validation AbsRel). The library prints nothing; progress goes
-to ``on_event``. The command line is ``cuboids train depth`` (:mod:`cuboidcli.cli.train_depth`);
-``python -m cuboidcli.depth.train`` remains as the older spelling of it.
+to ``on_event``. The command line is ``cuboids train depth`` (:mod:`cuboidcli.cli.train_depth`).
 """
 
 from __future__ import annotations

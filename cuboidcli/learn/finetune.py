@@ -99,7 +99,7 @@ from cuboidcli.nets.sampler import SamplerNet
 from cuboidcli.nets.sampler import net_from_checkpoint as sampler_from_checkpoint
 from cuboidcli.sampling import draw_sets_and_maps
 from cuboidcli.sampling.learned import LearnedSampler
-from cuboidcli.weights import FILES, resolve
+from cuboidcli.weights import FILES, default_path, resolve
 
 STATE_KIND = "finetune-state"
 #: The files it writes, in the layout ``--weights DIR`` reads.
@@ -277,7 +277,10 @@ def load_nets(cfg: FinetuneConfig, sampler_weights=None, solver_weights=None, de
     if not path.is_file():
         raise FileNotFoundError(f"sampler weights {path} not found; train them with 'cuboids train sampler'")
     sampler = load_net(path, "sampler", sampler_from_checkpoint)
-    solver = load_solver_net(solver_weights, "cpu") if cfg.solver == "neural" else None
+    if cfg.solver == "neural":
+        solver = load_solver_net(default_path("solver") if solver_weights is None else solver_weights, "cpu")
+    else:
+        solver = None
     depth = None
     if cfg.rgb:
         from cuboidcli.nets.depth import net_from_checkpoint

@@ -16,9 +16,9 @@ cuboids is used instead.
 Files in ``out_dir``: ``config.json`` (resolved configs), ``log.jsonl`` (one JSON record per step,
 validation and epoch), ``last.pt`` and ``epoch_XXX.pt`` (training state: weights, optimizer, RNG states,
 epoch; the last ``keep_snapshots`` are kept) and ``sampler_v2.pt`` (weights only, the best validation so
-far, in the format :meth:`cuboidcli.sampling.learned.LearnedSampler.load` reads, so ``--weights out_dir``
-uses it). ``resume`` continues a run exactly: the same frames, draws and losses as without interruption.
-This module prints nothing: progress goes to the ``on_event`` callback.
+far, in the format :meth:`cuboidcli.sampling.learned.LearnedSampler.load` reads; ``--weights out_dir``
+finds it there). ``resume`` continues a run exactly: the same frames, draws and losses as without
+interruption. This module prints nothing: progress goes to the ``on_event`` callback.
 
 Multi-process (``torchrun``, see :mod:`cuboidcli.learn.distributed`): every rank holds a replica of the
 net and prepares every training scene. The B scenes of a step are split over the W ranks, rank r taking

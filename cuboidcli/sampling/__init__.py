@@ -3,8 +3,9 @@
 A sampler returns Q sampling distributions over the fitting points and a selection distribution q over
 them. A hypothesis first picks a distribution by q, then draws its C points from it with replacement.
 Uniform sampling has Q = 1; the learned sampler (Q = 4) is in :mod:`cuboidcli.sampling.learned`, minimal
-sets localised in a 3D ball in :mod:`cuboidcli.sampling.proposals`. :func:`make_sampler` builds a sampler
-by name. Fitting imports this package; it imports neither fitting nor the solvers.
+sets localised in a 3D ball in :mod:`cuboidcli.sampling.proposals`. :func:`cuboidcli.factories.make_sampler`
+builds a sampler by name. Fitting imports this package; it imports neither fitting, the solvers nor the
+weights registry.
 """
 
 from __future__ import annotations
@@ -153,17 +154,3 @@ def draw_hypotheses(
     local[:n_local] = True
     return maps, idx, local
 
-
-def make_sampler(name: str, weights_dir=None, device: str = "cpu") -> Sampler:
-    if name == "uniform":
-        return UniformSampler()
-    if name == "sequential":
-        return SequentialSampler()
-    if name == "local":
-        return LocalSampler()
-    if name == "learned":
-        from cuboidcli.sampling.learned import LearnedSampler
-        from cuboidcli.weights import weights_for
-
-        return LearnedSampler.load(weights_for("sampler", weights_dir), device=device)
-    raise ValueError(f"unknown sampler {name!r}; choose uniform, sequential, local or learned")

@@ -2,20 +2,20 @@
 
 The network sees the fitting grid of a :class:`~cuboidcli.sampling.SamplingContext` (depth and the state
 of the cuboids selected so far) and returns Q sampling-weight maps and selection weights q. The context is
-only read here, so it is imported for type checking alone: the package imports this module lazily (in
-:func:`~cuboidcli.sampling.make_sampler`) and this module never imports the package back.
+only read here, so it is imported for type checking alone: this module never imports the package. Which
+weights file to load is decided by :func:`cuboidcli.factories.load_learned_sampler`.
 """
 
 from __future__ import annotations
 
 import os
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import torch
 from torch import Tensor
 
 from cuboidcli.nets.sampler import SamplerNet, net_from_checkpoint
-from cuboidcli.weights import resolve
 
 if TYPE_CHECKING:
     from cuboidcli.sampling import SamplingContext
@@ -51,10 +51,9 @@ class LearnedSampler:
         self.net = net.to(self.device).eval()
 
     @classmethod
-    def load(cls, weights_dir: str | os.PathLike | None = None, device: str = "cpu") -> LearnedSampler:
-        """Load the weights a ``--weights`` value names (:func:`cuboidcli.weights.resolve`: a .pt file as
-        given, ``<folder>/sampler_v2.pt``, None: ``models/sampler_v2.pt`` or ``$CUBOIDS_SAMPLER_WEIGHTS``)."""
-        path = resolve("sampler", weights_dir)
+    def load(cls, path: str | os.PathLike, device: str = "cpu") -> LearnedSampler:
+        """Load a sampler weights file (``sampler_v2.pt``); raises FileNotFoundError when it is missing."""
+        path = Path(path)
         if not path.is_file():
             raise FileNotFoundError(
                 f"sampler weights {path} not found; train them with 'cuboids train sampler DATA' and pass "

@@ -1,8 +1,9 @@
 """Neural cuboid solver (paper Sec. 3.2.3): one forward pass of the regression network per batch of sets.
 
 Weights are plain dicts ``{"config", "state_dict", "meta"}`` loaded with ``torch.load(weights_only=True)``;
-see :mod:`cuboidcli.nets.solver`. Which file is loaded is decided by :mod:`cuboidcli.weights` (the shipped
-weights live in ``models/`` beside their model card).
+see :mod:`cuboidcli.nets.solver`. The solver takes a weights file or a loaded net; which file a
+``--weights`` value names is decided by :func:`cuboidcli.factories.make_solver` with the weights registry
+(:mod:`cuboidcli.weights`; the shipped weights live in ``models/`` beside their model card).
 """
 
 from __future__ import annotations
@@ -18,23 +19,15 @@ from torch import Tensor
 from cuboidcli.io.checkpoints import load_net
 from cuboidcli.nets.solver import SolverNet, net_from_checkpoint
 from cuboidcli.solvers.base import SizeBounds
-from cuboidcli.weights import default_path, resolve
 
 #: Sets per forward chunk on the CPU: 512 x 6 points keep the activations (~1 MB per layer) in the cache,
 #: which made the 4096-set forward pass about 1.5x faster than one big batch.
 CHUNK_SETS = 512
 
 
-def resolve_weights(weights: str | os.PathLike | None) -> Path:
-    """The solver weights file for a ``--weights`` value (:func:`cuboidcli.weights.resolve`): None = the
-    default; a folder = its ``solver_v2.pt`` (``solver_v1.pt`` in folders of the first release); a file as
-    given. Here for :func:`cuboidcli.fitting.pipeline.make_solver`."""
-    return resolve("solver", weights)
-
-
-def load_solver_net(path: str | os.PathLike | None = None, device: str | torch.device = "cpu") -> SolverNet:
-    """Load a solver checkpoint (None = the default weights) into an eval-mode float32 net on ``device``."""
-    path = Path(path) if path is not None else default_path("solver")
+def load_solver_net(path: str | os.PathLike, device: str | torch.device = "cpu") -> SolverNet:
+    """Load a solver checkpoint into an eval-mode float32 net on ``device``."""
+    path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(
             f"solver weights {path} not found; pass a .pt file written by 'cuboids train solver'"
@@ -90,6 +83,8 @@ class NeuralSolver:
         net: SolverNet | None = None,
         threads: int | None = None,
     ) -> None:
+        if net is None and weights is None:
+            raise TypeError("NeuralSolver needs a weights file or a loaded net")
         self.device = torch.device(device)
         self.net = net.to(self.device).eval() if net is not None else load_solver_net(weights, self.device)
         cfg = self.net.config

@@ -1,5 +1,5 @@
 """Synthetic minimal sets: the neural solver's pre-training data (paper appendix "Neural Cuboid Solver")
-and the fixed inputs of the ONNX export's parity check (:mod:`cuboidcli.solvers.onnx`).
+and the fixed inputs of the ONNX export's parity check (:mod:`cuboidcli.solvers.onnx_export`).
 
 Random boxes are seen by a camera at the origin (OpenCV frame, metres). C points are drawn on the sides
 that face the camera, a side being chosen with probability proportional to its area times |cos| of the

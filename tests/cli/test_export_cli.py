@@ -167,7 +167,7 @@ def test_onnx_options_reach_the_solver_export(app, tmp_path, monkeypatch):
         return Path(out_path)
 
     monkeypatch.setitem(
-        sys.modules, "cuboidcli.solvers.onnx", types.SimpleNamespace(export_solver_onnx=fake_export)
+        sys.modules, "cuboidcli.solvers.onnx_export", types.SimpleNamespace(export_solver_onnx=fake_export)
     )
     (tmp_path / "w.pt").write_bytes(b"")
     res = runner.invoke(
@@ -184,8 +184,8 @@ def test_onnx_options_reach_the_solver_export(app, tmp_path, monkeypatch):
 
 
 @pytest.mark.skipif(
-    importlib.util.find_spec("cuboidcli.solvers.onnx") is None,
-    reason="cuboidcli.solvers.onnx (the solver's ONNX export) is not in the tree yet",
+    importlib.util.find_spec("cuboidcli.solvers.onnx_export") is None,
+    reason="cuboidcli.solvers.onnx_export (the solver's ONNX export) is not in the tree yet",
 )
 def test_export_onnx(app, tmp_path):
     pytest.importorskip("onnx")

@@ -188,8 +188,8 @@ def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch, t
     """IMAGE may be a folder: every colour image is fitted from estimated depth, depth PNGs next to the photos
     are left out with one note, per-frame intrinsics are found by the frame name without "_rgb", and the
     depth network is loaded once for the whole folder."""
+    from cuboidcli import factories
     from cuboidcli.depth import estimator as estimator_mod
-    from cuboidcli.fitting import frame as frame_mod
 
     folder = tmp_path / "frames"
     folder.mkdir()
@@ -207,7 +207,7 @@ def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch, t
         "__init__",
         lambda self, *a, **k: loads.append(1) or real(self, *a, **k),
     )
-    frame_mod.depth_estimator.cache_clear()
+    factories.depth_estimator.cache_clear()
     out = tmp_path / "out"
     r = run("fit", folder, "--depth-model", tiny_depth_weights, "-o", out, *ONE_CUBOID)
     assert r.exit_code == 0, r.output

@@ -4,6 +4,8 @@ resuming and extending it, Ctrl-C, and the one-line errors."""
 from __future__ import annotations
 
 import json
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -151,18 +153,17 @@ def test_missing_inputs_fail_in_one_line(app, dataset, tmp_path):
     assert bad.exit_code == 2 and "not a depth training checkpoint (use last.pt)" in bad.output
 
 
-def test_module_entry_point_still_prints_json(dataset, tmp_path, capsys):
-    from cuboidcli.depth.train import main
-
-    main([str(dataset), "--out", str(tmp_path / "m"), "--epochs", "1", "--batch", "8"])
-    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
+def test_json_prints_the_records_as_json_lines(app, dataset, tmp_path):
+    r = _run(app, dataset, "--out", tmp_path / "m", "--epochs", "1", "--batch", "8", "--json")
+    assert r.exit_code == 0, r.output
+    records = [json.loads(line) for line in r.stdout.splitlines()]
     assert records[0]["event"] == "start" and records[-1]["event"] == "done" and records[-1]["epoch"] == 1
     assert (tmp_path / "m" / "best.pt").is_file()
 
 
 def test_module_entry_point_of_the_depth_errors(dataset, tmp_path, capsys):
-    """``python -m cuboidcli.depth.evaluate`` (its options parsed in cuboidcli/cli/depth_evaluate.py)."""
-    from cuboidcli.depth.evaluate import main
+    """``python -m cuboidcli.cli.depth_evaluate``."""
+    from cuboidcli.cli.depth_evaluate import main
     from cuboidcli.io.dataset import list_frames
 
     main([str(dataset), "--split", "val", "--out", str(tmp_path / "errors.json")])
@@ -174,3 +175,7 @@ def test_module_entry_point_of_the_depth_errors(dataset, tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main([str(tmp_path / "missing")])
     assert exit_info.value.code == 2
+    usage = subprocess.run(
+        [sys.executable, "-m", "cuboidcli.cli.depth_evaluate", "--help"], capture_output=True, text=True
+    )
+    assert usage.returncode == 0 and "python -m cuboidcli.cli.depth_evaluate" in usage.stdout

@@ -11,8 +11,9 @@ import torch
 from torch import nn
 
 from cuboidcli.camera import Camera
-from cuboidcli.depth import BuiltinDepthEstimator, OnnxDepthEstimator, depth_for_fit, make_depth_estimator
+from cuboidcli.depth import BuiltinDepthEstimator, OnnxDepthEstimator
 from cuboidcli.depth.estimator import fit_scale_shift
+from cuboidcli.factories import depth_for_fit, make_depth_estimator
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.depth import DepthNet, DepthNetConfig, net_from_checkpoint
 
@@ -130,6 +131,8 @@ def test_builtin_missing_weights(tmp_path, monkeypatch):
     with pytest.raises(FileNotFoundError, match="depth weights .* not found") as info:
         BuiltinDepthEstimator(tmp_path / "nope.pt")
     assert "\n" not in str(info.value)
+    with pytest.raises(TypeError, match="weights file or a loaded net"):
+        BuiltinDepthEstimator()  # the default weights are the factories' choice (make_depth_estimator)
     monkeypatch.setenv("CUBOIDS_DEPTH_WEIGHTS", str(tmp_path / "missing.pt"))
     with pytest.raises(FileNotFoundError):
         make_depth_estimator()

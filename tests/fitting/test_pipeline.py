@@ -6,9 +6,9 @@ import torch
 
 from cuboidcli.cuboid import stack_cuboids
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_depth, prepare_points
+from cuboidcli.fitting.pipeline import prepare_points
 from cuboidcli.geometry.kernels import cuboid_sq_distance, inlier_fn, oa_sq_distance, oai_of_set, to_local
-from tests.conftest import simple_room
+from tests.conftest import fit_named, simple_room
 
 
 def joint_values(depth, camera, cuboids, config: FitConfig, occlusion_aware: bool) -> torch.Tensor:
@@ -27,7 +27,7 @@ def test_render_then_fit_recovers_simple_room(room_depth, nyu_camera):
 
     depth, _ = room_depth
     config = FitConfig(seed=0)
-    cuboids, info = fit_depth(depth, nyu_camera, config)
+    cuboids, info = fit_named(depth, nyu_camera, config)
     assert 3 <= len(cuboids) <= 8
     assert info.gains == [c.inlier_gain for c in cuboids]
     assert all(g > info.theta for g in info.gains)
@@ -53,8 +53,8 @@ def test_render_then_fit_recovers_simple_room(room_depth, nyu_camera):
 def test_fit_is_deterministic_for_a_seed(room_depth, nyu_camera):
     depth, _ = room_depth
     cfg = FitConfig(seed=7, hypotheses=512)
-    a, _ = fit_depth(depth, nyu_camera, cfg)
-    b, _ = fit_depth(depth, nyu_camera, cfg)
+    a, _ = fit_named(depth, nyu_camera, cfg)
+    b, _ = fit_named(depth, nyu_camera, cfg)
     assert len(a) == len(b)
     for x, y in zip(a, b, strict=True):
         np.testing.assert_array_equal(x.center, y.center)
@@ -63,14 +63,14 @@ def test_fit_is_deterministic_for_a_seed(room_depth, nyu_camera):
 
 def test_stopping_criterion_and_max_cuboids(room_depth, nyu_camera):
     depth, _ = room_depth
-    cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, max_cuboids=2, theta=-1e9))
+    cubs, info = fit_named(depth, nyu_camera, FitConfig(hypotheses=256, max_cuboids=2, theta=-1e9))
     assert len(cubs) == 2 and info.stop_reason == "max_cuboids"
     # a huge theta rejects everything: no cuboid is ever reported below the threshold
-    cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, theta=3000.0))
+    cubs, info = fit_named(depth, nyu_camera, FitConfig(hypotheses=256, theta=3000.0))
     assert cubs == [] and info.stop_reason == "gain_below_theta" and info.rejected_gain < 3000.0
     assert info.batches and info.batches[0] >= 1
     # a theta above the number of points: nothing can reach it, the step stops without drawing
-    cubs, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, theta=1e6))
+    cubs, info = fit_named(depth, nyu_camera, FitConfig(hypotheses=256, theta=1e6))
     assert cubs == [] and info.batches == [0] and info.rejected_gain is None
 
 
@@ -86,9 +86,9 @@ def test_fitting_grid_excludes_invalid_depth(nyu_camera):
 
 def test_sequential_sampler_and_plain_inlier_baseline(room_depth, nyu_camera):
     depth, _ = room_depth
-    seq, _ = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, sampler="sequential"))
+    seq, _ = fit_named(depth, nyu_camera, FitConfig(hypotheses=256, sampler="sequential"))
     config = FitConfig(hypotheses=256, occlusion_aware=False, max_cuboids=3, refine=False)
-    plain, info = fit_depth(depth, nyu_camera, config)
+    plain, info = fit_named(depth, nyu_camera, config)
     assert len(seq) >= 1 and len(plain) >= 1
     # without OAI nothing is ever marked occluded
     assert (info.assignment != -2).all()

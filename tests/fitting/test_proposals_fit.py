@@ -11,19 +11,15 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.presets import resolve
+from cuboidcli.factories import make_solver
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import (
-    fit_depth,
-    gain_upper_bound,
-    make_solver,
-    miss_probability,
-    prepare_points,
-)
+from cuboidcli.fitting.pipeline import gain_upper_bound, miss_probability, prepare_points
 from cuboidcli.fitting.scoring import ScoreParams, gains_torch, values_torch
 from cuboidcli.fitting.winner import grow_cuboid
 from cuboidcli.io.depth import read_depth
 from cuboidcli.sampling import SequentialSampler
 from cuboidcli.synth import render_boxes
+from tests.conftest import fit_named
 
 SAMPLE = Path(__file__).resolve().parents[2] / "cuboidcli" / "data" / "sample"
 
@@ -103,8 +99,8 @@ def test_grow_cuboid_pushes_faces_to_where_the_surface_ends(nyu_camera):
 def test_growing_lets_one_cuboid_explain_a_whole_wall(nyu_camera):
     _, depth = _wall(nyu_camera)
     base = FitConfig(max_cuboids=1, hypotheses=256, local_fraction=1.0, local_radii_m=(0.3,), seed=1)
-    _, plain = fit_depth(depth, nyu_camera, replace(base, grow_rounds=0), sampler=SequentialSampler())
-    _, grown = fit_depth(depth, nyu_camera, base, sampler=SequentialSampler())
+    _, plain = fit_named(depth, nyu_camera, replace(base, grow_rounds=0), sampler=SequentialSampler())
+    _, grown = fit_named(depth, nyu_camera, base, sampler=SequentialSampler())
     wall_points = int((depth[::8, ::8] > 0).sum())
     assert plain.gains[0] < 0.7 * wall_points
     assert grown.gains[0] > 0.9 * wall_points
@@ -115,7 +111,7 @@ def test_demo_room_gives_its_cuboids_for_every_seed_at_1024_hypotheses(demo_room
     config = FitConfig(hypotheses=1024, sampler="sequential")
     solver = make_solver(config)
     for seed in range(4):
-        cuboids, info = fit_depth(depth, camera, replace(config, seed=seed), solver=solver)
+        cuboids, info = fit_named(depth, camera, replace(config, seed=seed), solver=solver)
         assert len(cuboids) >= 4, (seed, info.gains, info.batches)
         assert len(info.batches) == info.iterations
         assert all(1 <= b <= config.max_batches for b in info.batches[: len(cuboids)])
@@ -126,14 +122,14 @@ def test_adaptive_termination_draws_more_batches_before_giving_up(demo_room):
     # a Theta no cuboid of the room reaches (its floor gains about 800) but a structure of that size
     # could exist and be missed: the step draws every batch allowed before giving up, and reports them
     config = FitConfig(hypotheses=256, sampler="sequential", theta=2000.0, max_batches=3, confidence=1 - 1e-9)
-    cuboids, info = fit_depth(depth, camera, config)
+    cuboids, info = fit_named(depth, camera, config)
     assert cuboids == [] and info.batches == [3] and info.stop_reason == "gain_below_theta"
     assert 300 < info.rejected_gain < 2000
     # with a loose confidence one batch is enough to conclude
-    _, info = fit_depth(depth, camera, replace(config, confidence=0.5))
+    _, info = fit_named(depth, camera, replace(config, confidence=0.5))
     assert info.batches == [1]
     # a Theta above what the points could ever give: stop without drawing anything
-    cuboids, info = fit_depth(depth, camera, replace(config, theta=1e9))
+    cuboids, info = fit_named(depth, camera, replace(config, theta=1e9))
     assert info.batches == [0] and info.rejected_gain is None
 
 

@@ -11,7 +11,6 @@ import torch
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_depth
 from cuboidcli.geometry.gravity import (
     estimate_gravity,
     given_gravity,
@@ -20,6 +19,7 @@ from cuboidcli.geometry.gravity import (
 )
 from cuboidcli.geometry.rotations import axis_angle_to_matrix
 from cuboidcli.synth import render_boxes
+from tests.conftest import fit_named
 
 
 def _rot(axis_angle) -> np.ndarray:
@@ -97,9 +97,9 @@ def test_aligned_fit_gives_upright_boxes_and_keeps_the_free_fits_gain(nyu_camera
     cuboids, up = _room(-25.0, 4.0)
     depth, _ = render_boxes(cuboids, nyu_camera, noise=True, seed=5)
     base = FitConfig(hypotheses=512, max_cuboids=4, seed=0, slab_max_m=4.0)
-    _, free = fit_depth(depth, nyu_camera, base)
+    _, free = fit_named(depth, nyu_camera, base)
     for mode in ("gravity", "manhattan"):
-        boxes, info = fit_depth(depth, nyu_camera, replace(base, align=mode))
+        boxes, info = fit_named(depth, nyu_camera, replace(base, align=mode))
         assert info.align == mode and info.gravity is not None
         assert len(boxes) == len(info.aligned) >= 3
         # the floor and the walls are aligned (a leftover wall piece may stay free when an aligned box
@@ -110,7 +110,7 @@ def test_aligned_fit_gives_upright_boxes_and_keeps_the_free_fits_gain(nyu_camera
                 assert np.abs(box.rotation.T @ up).max() > np.cos(np.deg2rad(0.5))
         assert sum(info.gains) > 0.97 * sum(free.gains)
     # manhattan boxes share the room's axes: their rotations differ by signed permutations only
-    boxes, _ = fit_depth(depth, nyu_camera, replace(base, align="manhattan"))
+    boxes, _ = fit_named(depth, nyu_camera, replace(base, align="manhattan"))
     rel = boxes[0].rotation.T @ boxes[1].rotation
     assert np.allclose(np.abs(rel).max(0), 1.0, atol=1e-6)
 
@@ -118,11 +118,11 @@ def test_aligned_fit_gives_upright_boxes_and_keeps_the_free_fits_gain(nyu_camera
 def test_without_gravity_an_aligned_fit_stays_free_and_says_so(nyu_camera):
     wall = Cuboid(np.array([0.0, 0.0, 2.0]), np.array([3.0, 3.0, 0.02]), np.eye(3))
     depth, _ = render_boxes([wall], nyu_camera, noise=True)
-    boxes, info = fit_depth(depth, nyu_camera, FitConfig(hypotheses=256, align="gravity"))
+    boxes, info = fit_named(depth, nyu_camera, FitConfig(hypotheses=256, align="gravity"))
     assert info.align == "free" and info.gravity is None and boxes
     assert len(info.warnings) == 1 and "--gravity" in info.warnings[0]
     # a given gravity is used as it is
-    boxes, info = fit_depth(
+    boxes, info = fit_named(
         depth, nyu_camera, FitConfig(hypotheses=256, align="gravity", gravity_down=(0.0, 1.0, 0.0))
     )
     assert info.align == "gravity" and info.gravity.source == "given" and not info.warnings
@@ -135,8 +135,8 @@ def test_long_slabs_let_one_cuboid_span_a_wall_longer_than_two_a_max(nyu_camera)
     wall = Cuboid(np.array([0.0, 0.0, 3.0]), np.array([3.5, 1.2, 0.02]), rot)
     depth, _ = render_boxes([wall], nyu_camera)
     base = FitConfig(hypotheses=256, max_cuboids=1, local_fraction=1.0, seed=2)
-    short, _ = fit_depth(depth, nyu_camera, replace(base, slab_max_m=None))
-    long_, _ = fit_depth(depth, nyu_camera, replace(base, slab_max_m=4.0))
+    short, _ = fit_named(depth, nyu_camera, replace(base, slab_max_m=None))
+    long_, _ = fit_named(depth, nyu_camera, replace(base, slab_max_m=4.0))
     assert short[0].half_size.max() <= base.a_max + 1e-6
     assert long_[0].half_size.max() > base.a_max + 0.2
     assert long_[0].half_size.min() < 0.1  # still a slab

@@ -6,6 +6,7 @@ import pytest
 import torch
 
 from cuboidcli.camera import Camera
+from cuboidcli.factories import load_learned_sampler
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.learn.finetune import (
     DEPTH_NAME,
@@ -165,14 +166,13 @@ def test_finetune_writes_weights_and_resumes(tmp_path, rgbd_dataset, weights):
         assert set(ckpt) >= {"config", "state_dict", "meta"}
     # the fine-tuned depth network differs from its start; the files load where fit loads them
     from cuboidcli.depth.estimator import BuiltinDepthEstimator
-    from cuboidcli.sampling.learned import LearnedSampler
     from cuboidcli.solvers.neural import NeuralSolver
 
     start = torch.load(weights / "depth.pt", weights_only=True)["state_dict"]
     tuned = torch.load(out / DEPTH_NAME, weights_only=True)["state_dict"]
     assert any(not torch.equal(start[k], tuned[k]) for k in start)
     BuiltinDepthEstimator(out / DEPTH_NAME)
-    LearnedSampler.load(out)
+    load_learned_sampler(out)
     NeuralSolver(out / SOLVER_NAME)
 
     # two epochs straight == one epoch, then resume for the second

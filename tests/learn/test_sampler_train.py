@@ -8,6 +8,7 @@ import pytest
 import torch
 
 from cuboidcli.camera import Camera
+from cuboidcli.factories import load_learned_sampler
 from cuboidcli.fitting.pipeline import prepare_points
 from cuboidcli.geometry.kernels import oai_per_cuboid
 from cuboidcli.learn.sampler_loss import (
@@ -25,7 +26,7 @@ from cuboidcli.learn.sampler_loss import (
 from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler, train_scene
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext
-from cuboidcli.sampling.learned import LearnedSampler, grid_inputs
+from cuboidcli.sampling.learned import grid_inputs
 from cuboidcli.solvers.numerical import NumericalSolver
 from cuboidcli.weights import FILES
 from tests.conftest import simple_room, write_room_dataset
@@ -238,7 +239,7 @@ def test_training_writes_usable_weights_and_logs(tmp_path, tiny_dataset):
     out = tmp_path / "run"
     final = train_sampler(_tiny_config(epochs=1), tiny_dataset, out, net_cfg=TINY)
     assert final["epochs_done"] == 1
-    sampler = LearnedSampler.load(out)  # the best weights under the versioned name
+    sampler = load_learned_sampler(out)  # the best weights under the versioned name
     assert sampler.net.config.width == TINY.width
     assert sampler.net.config.depth_mean_m != TINY.depth_mean_m  # normalised by the training frames
     vals = _records(out / "log.jsonl", "val")

@@ -4,14 +4,15 @@ import pytest
 import torch
 
 from cuboidcli.camera import Camera
+from cuboidcli.factories import load_learned_sampler, make_sampler
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_depth, prepare_points
+from cuboidcli.fitting.pipeline import prepare_points
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig, net_from_checkpoint
-from cuboidcli.sampling import SamplingContext, make_sampler
+from cuboidcli.sampling import SamplingContext
 from cuboidcli.sampling.learned import LearnedSampler
 from cuboidcli.weights import FILES
-from tests.conftest import simple_room
+from tests.conftest import fit_named, simple_room
 
 TINY = SamplerNetConfig(width=16, blocks=1, upsample=2)
 SAMPLER_FILE = FILES["sampler"]
@@ -92,11 +93,11 @@ def test_checkpoint_round_trip_and_load(tmp_path, small_scene):
     torch.manual_seed(0)
     net = SamplerNet(TINY)
     torch.save(checkpoint_dict(net, {"note": "test"}), tmp_path / SAMPLER_FILE)
-    loaded = LearnedSampler.load(tmp_path)
+    loaded = load_learned_sampler(tmp_path)  # a --weights folder: its sampler_v2.pt
     assert loaded.name == "learned" and loaded.net.config == TINY
     ctx = _context(*small_scene)
     torch.testing.assert_close(loaded.distributions(ctx)[0], LearnedSampler(net).distributions(ctx)[0])
-    # a .pt path works as well, and make_sampler("learned") goes through the same loader
+    # the file itself loads the same, and make_sampler("learned") goes through the same loader
     assert LearnedSampler.load(tmp_path / SAMPLER_FILE).net.config == TINY
     assert make_sampler("learned", tmp_path).name == "learned"
     ckpt = torch.load(tmp_path / SAMPLER_FILE, weights_only=True)
@@ -118,10 +119,10 @@ def test_learned_sampler_plugs_into_fit_depth(tmp_path, small_scene):
     torch.manual_seed(0)
     torch.save(checkpoint_dict(SamplerNet(TINY)), tmp_path / SAMPLER_FILE)
     cfg = FitConfig(sampler="learned", hypotheses=128, grid_step=4, max_cuboids=3, refine=False, seed=1)
-    cuboids, info = fit_depth(depth, camera, cfg, weights_dir=tmp_path)
+    cuboids, info = fit_named(depth, camera, cfg, weights=tmp_path)
     assert 1 <= len(cuboids) <= 3
     assert all(g > info.theta for g in info.gains)
-    again, _ = fit_depth(depth, camera, cfg, weights_dir=tmp_path)
+    again, _ = fit_named(depth, camera, cfg, weights=tmp_path)
     assert [c.center.tolist() for c in again] == [c.center.tolist() for c in cuboids]
 
 

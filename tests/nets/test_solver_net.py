@@ -109,6 +109,8 @@ def test_neural_solver_protocol(tmp_path):
         NeuralSolver(path, bounds=SizeBounds(2.0, 30.0))
     with pytest.raises(FileNotFoundError):
         NeuralSolver(tmp_path / "missing.pt")
+    with pytest.raises(TypeError, match="weights file or a loaded net"):
+        NeuralSolver()  # the default weights are the factories' choice (cuboidcli.factories.make_solver)
 
 
 def test_neural_solver_thread_pool_matches_serial():

@@ -9,13 +9,14 @@ import torch
 
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.solver import SolverNet, SolverNetConfig
-from cuboidcli.solvers import onnx as onnx_solver
+from cuboidcli.solvers import onnx_export
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.neural import NeuralSolver
-from cuboidcli.solvers.onnx import OnnxSolver, export_net_onnx, export_solver_onnx, onnx_parity
+from cuboidcli.solvers.onnx import OnnxSolver
+from cuboidcli.solvers.onnx_export import export_net_onnx, export_solver_onnx, onnx_parity
 from cuboidcli.solvers.synthetic import SyntheticConfig, seeded_batch
 
-# The optional dependencies; cuboidcli.solvers.onnx imports them only when used.
+# The optional dependencies; cuboidcli.solvers.onnx and .onnx_export import them only when used.
 onnx = pytest.importorskip("onnx")
 pytest.importorskip("onnxruntime")
 
@@ -76,7 +77,7 @@ def test_onnx_solver_matches_neural_solver(weights, exported):
 def test_failed_validation_leaves_no_file(tmp_path, monkeypatch):
     torch.manual_seed(1)
     net = SolverNet(TINY)
-    monkeypatch.setattr(onnx_solver, "PARITY_TOL", -1.0)  # any difference now counts as a mismatch
+    monkeypatch.setattr(onnx_export, "PARITY_TOL", -1.0)  # any difference now counts as a mismatch
     out = tmp_path / "bad.onnx"
     with pytest.raises(RuntimeError, match="does not match PyTorch"):
         export_net_onnx(net, out)

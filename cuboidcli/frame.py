@@ -1,15 +1,16 @@
-"""Loading one frame's inputs (depth, optional RGB, intrinsics) and packaging a fit as a FitResult."""
+"""Loading one frame's inputs (depth, or RGB with depth estimated from it, and intrinsics) and packaging a
+fit as a FitResult: what ``cuboids fit`` and a folder of frames run around :class:`cuboidcli.api.Fitter`."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
 
 from cuboidcli.camera import PRESETS, Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.factories import DepthModelOptions, depth_estimator
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import FitInfo
 from cuboidcli.io.depth import InputError, Intrinsics, check_inputs, parse_intrinsics, read_depth, read_rgb
@@ -39,21 +40,6 @@ def resolve_depth_scale(depth_scale: float | None, intr: Intrinsics, preset: str
     if preset is not None:
         return float(PRESETS[preset]["depth_scale"])
     return 0.001
-
-
-@dataclass(frozen=True)
-class DepthModelOptions:
-    """How to get depth from an RGB image when no depth map is given (:mod:`cuboidcli.depth`)."""
-
-    model: str | None = None
-    """None = the built-in network (models/depth_v3.pt); a .pt checkpoint or a user's .onnx model."""
-    kind: str = "metric"
-    """metric | relative | relative-inverse (for ONNX models)."""
-    scale: float | None = None
-    shift: float | None = None
-    partial_depth: str | None = None
-    """Sparse/partial depth map (same size as the image) to align a relative model to."""
-    device: str = "cpu"
 
 
 def load_frame(
@@ -113,17 +99,6 @@ def _estimate_depth(
         return estimate_depth(estimator, rgb, intr.camera(w, h), timing)
     except (ValueError, FileNotFoundError) as e:
         raise InputError(str(e)) from e
-
-
-@lru_cache(maxsize=4)
-def depth_estimator(opts: DepthModelOptions, depth_scale: float = 0.001):
-    """The depth estimator for these options, built once per process: a folder of images, or every frame of
-    an evaluation, loads the network (or a user's ONNX session) once; loading is start-up, not fitting time.
-    ``depth_scale``: metres per unit of ``opts.partial_depth`` when that is a PNG."""
-    from cuboidcli.depth import make_depth_estimator
-
-    partial = read_depth(opts.partial_depth, depth_scale) if opts.partial_depth else None
-    return make_depth_estimator(opts.model, opts.kind, opts.scale, opts.shift, partial, opts.device)
 
 
 def make_result(

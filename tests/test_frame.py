@@ -1,4 +1,4 @@
-"""cuboidcli.fitting.frame: one frame's inputs (depth and/or RGB, intrinsics, depth scale) as a FrameInput,
+"""cuboidcli.frame: one frame's inputs (depth and/or RGB, intrinsics, depth scale) as a FrameInput,
 and a fit packaged as a FitResult with its settings and fit_info."""
 
 from __future__ import annotations
@@ -12,16 +12,10 @@ import pytest
 
 from cuboidcli.camera import PRESETS, Camera
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.factories import DepthModelOptions, depth_estimator
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.frame import (
-    DepthModelOptions,
-    depth_estimator,
-    load_frame,
-    make_result,
-    resolve_depth_scale,
-    same_settings,
-)
 from cuboidcli.fitting.pipeline import FitInfo
+from cuboidcli.frame import load_frame, make_result, resolve_depth_scale, same_settings
 from cuboidcli.geometry.gravity import given_gravity
 from cuboidcli.io.depth import InputError, Intrinsics
 from cuboidcli.io.result import read_result, write_result
