@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from cuboidcli.fitting.scoring import ScoreParams, gains_torch, select_best
+from cuboidcli.fitting.backend import NumbaBackend
+from cuboidcli.fitting.scoring import ScoreParams, gains_torch
 from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.fused import cuboid_values, score_gains
 from cuboidcli.geometry.rotations import axis_angle_to_matrix
@@ -62,11 +63,11 @@ def test_select_best_exact_and_fast_path():
     pts, c, a, R, state = scene(seed=4)
     sp = ScoreParams(TAU, BETA, 2 * TAU)
     ref = gains_torch(pts, c, a, R, state, sp).numpy()
-    best, gain, _ = select_best(
+    best, gain, _ = NumbaBackend().select_best(
         pts.float(), c.float(), a.float(), R.float(), state, sp, torch.Generator().manual_seed(0)
     )
     assert best == ref.argmax() and gain == pytest.approx(ref.max(), rel=1e-5)
-    best2, gain2, g2 = select_best(
+    best2, gain2, g2 = NumbaBackend().select_best(
         pts.float(),
         c.float(),
         a.float(),
