@@ -50,14 +50,7 @@ class ScoringBackend(ABC):
 
     @abstractmethod
     def gains(
-        self,
-        points: Tensor,
-        centers: Tensor,
-        half_sizes: Tensor,
-        rotations: Tensor,
-        state: Tensor,
-        sp: ScoreParams,
-        prune_below: float = -np.inf,
+        self, points: Tensor, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf
     ) -> np.ndarray:
         """Inlier-count gain of each hypothesis over ``state``: (H,) float64. A backend that prunes reports
         -inf for hypotheses whose gain provably stays below ``prune_below``; the others ignore it."""
