@@ -44,7 +44,9 @@ def make_solver(
     if config.solver == "numerical":
         from cuboidcli.solvers.numerical import NumericalSolver
 
-        return NumericalSolver(bounds=bounds, lr=config.solver_lr, iters=config.solver_iters)
+        return NumericalSolver(
+            bounds=bounds, lr=config.solver_lr, iters=config.solver_iters, backend=config.backend
+        )
     if config.solver == "neural":
         from cuboidcli.solvers.neural import NeuralSolver
 

@@ -11,6 +11,8 @@ from __future__ import annotations
 import math
 from dataclasses import asdict, dataclass
 
+from cuboidcli.geometry.backends import BACKENDS
+
 #: Orientation constraints of selected cuboids (FitConfig.align).
 ALIGN_MODES = ("free", "gravity", "manhattan")
 
@@ -132,6 +134,12 @@ class FitConfig:
     """Seed of the sampler's random generator; the same seed gives the same cuboids."""
     device: str = "cpu"
     """cpu or cuda."""
+    backend: str = "auto"
+    """Kernels that score hypotheses and refine winners: ``auto`` (numba on the CPU, torch on a GPU),
+    ``numba`` (the fused CPU loops; refused on a GPU) or ``torch`` (the reference kernels, any device).
+
+    Both compute the same values in float64 and select the same cuboids for a seed up to rounding; numba
+    is the faster on the CPU (it prunes hypotheses that cannot win and builds no (H, N, 6) tensors)."""
 
     @property
     def tau_c(self) -> float:
@@ -152,6 +160,12 @@ class FitConfig:
             raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
         if self.align not in ALIGN_MODES:
             raise ValueError(f"align must be one of {', '.join(ALIGN_MODES)}, got {self.align!r}")
+        if self.backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {self.backend!r}")
+        if self.backend == "numba" and not self.device.startswith("cpu"):
+            raise ValueError(
+                f"backend 'numba' runs on the CPU only, not on {self.device!r}; use auto or torch"
+            )
         if not self.local_radii_m or min(self.local_radii_m) <= 0:
             raise ValueError(f"local_radii_m must be positive radii, got {self.local_radii_m}")
 

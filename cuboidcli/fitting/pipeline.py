@@ -19,8 +19,9 @@ import torch
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import OCCLUDED
+from cuboidcli.fitting.backend import NumbaBackend, ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.scoring import ScoreParams, select_best
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.fitting.winner import Alignment, align_winner, refine_winner, values_one
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
 from cuboidcli.geometry.kernels import combine
@@ -111,24 +112,18 @@ _COMPILED = False
 
 
 def ensure_compiled() -> None:
-    """Compile (or load from cache) the fused CPU kernels once per process, outside any timing."""
+    """Compile (or load from cache) the fused CPU kernels once per process, outside any timing: those of the
+    numba backend (scoring, values, refinement), the numerical solver's and the localised sampler's."""
     global _COMPILED
     if _COMPILED:
         return
-    from cuboidcli.geometry.fused import cuboid_values, score_gains
     from cuboidcli.solvers.adam_fused import adam_solve
 
-    p = np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]])
-    c, a, R = np.array([[0.0, 0.0, 2.5]]), np.array([[0.5, 0.5, 0.5]]), np.eye(3)[None]
-    score_gains(p, c, a, R, np.zeros(2), 0.004, 5.0, 0.008)
-    cuboid_values(p, c, a, R, 0.004, 5.0, 0.008)
+    NumbaBackend().warm_up()
     init = np.zeros((1, 9))
     init[0, 6:] = 0.1
     adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy())
     adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy(), 1)  # upright boxes
-    from cuboidcli.fitting.refine import refine_cuboid_fused
-
-    refine_cuboid_fused(np.array([[0.0, 0.0, 2.0]] * 6), c[0], a[0], R[0], 1e-3, 2.0, iters=1)
     from cuboidcli.sampling.proposals import ball_minimal_sets
 
     ball_minimal_sets(
@@ -153,7 +148,9 @@ def fit_points(
     alignment: Alignment | None = None,
 ) -> tuple[list[Cuboid], FitInfo]:
     """Sequential robust fitting on prepared points (Sec. 3.2). ``timing`` collects per-stage seconds;
-    ``alignment`` constrains the orientation of the selected cuboids (None = free)."""
+    ``alignment`` constrains the orientation of the selected cuboids (None = free). The scoring and
+    refinement backend is chosen here, once, from ``config.backend`` and the points' device
+    (ValueError for "numba" on a GPU)."""
     timing = {} if timing is None else timing
     for k in ("sample", "solve", "score", "update"):
         timing.setdefault(k, 0.0)
@@ -166,6 +163,7 @@ def fit_points(
         align="free" if alignment is None else alignment.mode,
     )
     sp = ScoreParams(config.tau_sq_m2, config.beta, config.tau_c, config.occlusion_aware)
+    backend = backend_for(config.backend, pts.device)
     gen = torch.Generator().manual_seed(config.seed)
     state = torch.zeros(n, dtype=torch.float64, device=pts.device)
     cuboids: list[Cuboid] = []
@@ -193,7 +191,7 @@ def fit_points(
             info.batches.append(0)
             break
         gain, best_hyp, batches = _search_step(
-            ctx, sampler, solver, state, sp, config, gen, info.theta, timing, alignment
+            ctx, sampler, solver, state, sp, config, gen, info.theta, timing, alignment, backend
         )
         info.batches.append(batches)
         t4 = time.perf_counter()
@@ -202,17 +200,17 @@ def fit_points(
             info.rejected_gain = gain
             break
         c_b, a_b, R_b = best_hyp
-        values = values_one(pts, c_b, a_b, R_b, sp)
+        values = values_one(pts, c_b, a_b, R_b, sp, backend)
         if config.refine:
             c_b, a_b, R_b, values, gain = refine_winner(
-                pts, c_b, a_b, R_b, values, state, gain, sp, config, gen
+                pts, c_b, a_b, R_b, values, state, gain, sp, config, gen, backend
             )
             t5 = time.perf_counter()
             timing["refine"] = timing.get("refine", 0.0) + t5 - t4
             t4 = t5
         if alignment is not None:
             c_b, a_b, R_b, values, gain, kind = align_winner(
-                pts, c_b, a_b, R_b, values, state, gain, sp, config, alignment
+                pts, c_b, a_b, R_b, values, state, gain, sp, config, alignment, backend
             )
             info.aligned.append(kind)
             t5 = time.perf_counter()
@@ -249,12 +247,24 @@ def _solve(solver, sets: torch.Tensor, config: FitConfig, alignment: Alignment |
 
 
 def _search_step(
-    ctx, sampler, solver, state, sp: ScoreParams, config: FitConfig, gen, theta, timing, alignment=None
+    ctx,
+    sampler,
+    solver,
+    state,
+    sp: ScoreParams,
+    config: FitConfig,
+    gen,
+    theta,
+    timing,
+    alignment=None,
+    backend: ScoringBackend | None = None,
 ):
-    """The best hypothesis of one step: batches of |H| minimal sets are drawn, solved and scored until the
-    best gains Theta, the miss probability falls below 1 - confidence, or ``config.max_batches`` is
-    reached. Returns (gain, (centers, half_sizes, rotations) of the best as (1, ...) tensors, batches)."""
+    """The best hypothesis of one step: batches of |H| minimal sets are drawn, solved and scored (by
+    ``backend``; None = the default of the points' device) until the best gains Theta, the miss
+    probability falls below 1 - confidence, or ``config.max_batches`` is reached. Returns (gain,
+    (centers, half_sizes, rotations) of the best as (1, ...) tensors, batches)."""
     pts = ctx.points
+    backend = backend or backend_for(config.backend, pts.device)
     local_frac = local_fraction_of(sampler, config.local_fraction)
     gain, best, batches = -np.inf, None, 0
     t = time.perf_counter()
@@ -273,7 +283,7 @@ def _search_step(
         centers, half, rot = _solve(solver, pts[idx], config, alignment)
         t3 = time.perf_counter()
         timing["solve"] += t3 - t2
-        b, g, _ = select_best(
+        b, g, _ = backend.select_best(
             pts, centers, half, rot, state, sp, gen, config.prescore_points, config.rescore_top
         )
         timing["score"] += time.perf_counter() - t3

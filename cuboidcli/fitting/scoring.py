@@ -1,7 +1,9 @@
-"""Scoring hypotheses by their inlier-count gain: exact, with pruning, or with the approximate fast path.
+"""The parameters of the inlier function and the two ways of computing values and gains with them: the
+torch reference kernels (:func:`values_torch`, :func:`gains_torch`, any device, in chunks of hypotheses) and
+the fused numba loop (:func:`gains_cpu`, numpy on the CPU).
 
-The CPU path uses the fused numba loop (:mod:`cuboidcli.geometry.fused`); other devices use the torch
-reference kernels in chunks of hypotheses.
+Which one a fit uses, and how the best hypothesis of a batch is selected (exact with pruning, or the
+approximate fast path), is decided by its backend: :mod:`cuboidcli.fitting.backend`.
 """
 
 from __future__ import annotations
@@ -53,6 +55,8 @@ def gains_cpu(
     sp: ScoreParams,
     prune_below: float = -np.inf,
 ) -> np.ndarray:
+    """Gains (H,) float64 with the fused numba loop, numpy arrays in; ``prune_below`` as in
+    :func:`~cuboidcli.geometry.fused.score_gains`."""
     from cuboidcli.geometry.fused import score_gains
 
     return score_gains(
@@ -68,47 +72,3 @@ def gains_cpu(
         prune_below,
     )
 
-
-def select_best(
-    points: Tensor,
-    centers: Tensor,
-    half_sizes: Tensor,
-    rotations: Tensor,
-    state: Tensor,
-    sp: ScoreParams,
-    generator: torch.Generator,
-    prescore_points: int = 0,
-    rescore_top: int = 64,
-) -> tuple[int, float, Tensor]:
-    """Index and exact gain of the best hypothesis, plus the gains vector (-inf where not computed).
-
-    prescore_points == 0 (default) is exact: a cheap pass on a random eighth of the points nominates 16
-    candidates whose exact gains give a threshold, then every hypothesis is scored on all points with
-    provable pruning below that threshold, so the selected hypothesis is the true argmax.
-    prescore_points > 0 is the approximate fast path: all hypotheses are scored on that many random points
-    and only the best ``rescore_top`` are scored on all points.
-    """
-    n = points.shape[0]
-    if points.device.type != "cpu":
-        g = gains_torch(points, centers, half_sizes, rotations, state, sp)  # exact on GPUs
-        best = int(torch.argmax(g))
-        return best, float(g[best]), g.cpu().double()
-    P = points.double().numpy()
-    C, A, R = (x.double().numpy() for x in (centers, half_sizes, rotations))
-    S = state.double().numpy()
-    n_sub = prescore_points if prescore_points > 0 else max(n // 8, 1)
-    if n_sub < n:
-        sub = torch.randperm(n, generator=generator)[:n_sub].numpy()
-        g_sub = gains_cpu(P[sub], C, A, R, S[sub], sp)
-        k = rescore_top if prescore_points > 0 else 16
-        top = np.argsort(-g_sub, kind="stable")[:k]
-        g_top = gains_cpu(P, C[top], A[top], R[top], S, sp)
-        if prescore_points > 0:
-            g = np.full(C.shape[0], -np.inf)
-            g[top] = g_top
-        else:
-            g = gains_cpu(P, C, A, R, S, sp, prune_below=float(g_top.max()) - 1e-6)  # margin for rounding
-    else:
-        g = gains_cpu(P, C, A, R, S, sp)
-    best = int(np.argmax(g))
-    return best, float(g[best]), torch.from_numpy(g)

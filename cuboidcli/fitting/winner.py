@@ -4,7 +4,9 @@ surface ends, and, when asked, alignment to gravity or to the room's Manhattan f
 to its inliers (tight, upright boxes).
 
 All functions take one cuboid as (1, 3) centre, (1, 3) half-sizes and (1, 3, 3) rotation tensors (columns
-= the cuboid's axes, OpenCV camera frame, metres) and the points' current state (N,).
+= the cuboid's axes, OpenCV camera frame, metres) and the points' current state (N,). Values and refinement
+are computed by the fit's backend (:mod:`cuboidcli.fitting.backend`), passed as ``backend``; where it is
+left out (None), the default backend of the points' device.
 """
 
 from __future__ import annotations
@@ -14,8 +16,9 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
+from cuboidcli.fitting.backend import ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.scoring import ScoreParams, values_torch
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry.gravity import level_frame, manhattan_rotation, upright_rotation
 from cuboidcli.geometry.kernels import combine
 
@@ -70,29 +73,40 @@ class Alignment:
 
 
 def refine_winner(
-    pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator
+    pts,
+    c,
+    a,
+    R,
+    values,
+    state,
+    gain,
+    sp: ScoreParams,
+    config: FitConfig,
+    gen: torch.Generator,
+    backend: ScoringBackend | None = None,
 ):
     """Refine the winner on the points it newly explains, grow it face by face
     (:func:`grow_cuboid`), and refine the grown box again. Each result is kept only if the gain holds."""
-    c, a, R, values, gain = _refine_once(pts, c, a, R, values, state, gain, sp, config, gen)
+    backend = backend or backend_for("auto", pts.device)
+    c, a, R, values, gain = _refine_once(pts, c, a, R, values, state, gain, sp, config, gen, backend)
     if config.grow_rounds < 1:
         return c, a, R, values, gain
-    best = _grow_and_refine(pts, c, a, R, values, state, gain, sp, config, gen)
+    best = _grow_and_refine(pts, c, a, R, values, state, gain, sp, config, gen, backend)
     square = square_slab(pts, c, a, R, values, state, config)
     if square is not None:
         c2, a2, R2 = square
-        v2 = values_one(pts, c2, a2, R2, sp)
-        other = _grow_and_refine(pts, c2, a2, R2, v2, state, gain_of(v2, state), sp, config, gen)
+        v2 = values_one(pts, c2, a2, R2, sp, backend)
+        other = _grow_and_refine(pts, c2, a2, R2, v2, state, gain_of(v2, state), sp, config, gen, backend)
         if other[4] >= SQUARE_KEEP * best[4]:
             best = other
     return best
 
 
-def _grow_and_refine(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen):
-    c2, a2, values2, gain2 = grow_cuboid(pts, c, a, R, state, gain, sp, config)
+def _grow_and_refine(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen, backend):
+    c2, a2, values2, gain2 = grow_cuboid(pts, c, a, R, state, gain, sp, config, backend)
     if gain2 <= gain:
         return c, a, R, values, gain
-    return _refine_once(pts, c2, a2, R, values2, state, gain2, sp, config, gen)
+    return _refine_once(pts, c2, a2, R, values2, state, gain2, sp, config, gen, backend)
 
 
 def square_slab(pts, c, a, R, values, state, config: FitConfig):
@@ -128,7 +142,7 @@ def square_slab(pts, c, a, R, values, state, config: FitConfig):
     return tuple(torch.from_numpy(x)[None].to(device=c.device, dtype=c.dtype) for x in (cn, an, rot))
 
 
-def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
+def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig, backend=None):
     """Push each face of a cuboid outwards while the inlier-count gain rises (region growing).
 
     A minimal set of six points spans only part of a wall, a floor or a table top, and the solver's box
@@ -164,7 +178,7 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
                 grow = new_half - float(a[0, k])
                 if grow <= 1e-6:
                     break
-                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, grow, state, sp)
+                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, grow, state, sp, backend)
                 if g2 > gain + 1e-6:
                     c, a, values, gain, grew = c2, a2, v2, g2, True
                     break
@@ -175,32 +189,32 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
         if not moved:
             break
     if values is None:
-        return c, a, values_one(pts, c, a, R, sp), gain
+        return c, a, values_one(pts, c, a, R, sp, backend), gain
     # big steps may overshoot into space without points: pull each face back while no gain is lost
     floor = gain - 1e-3 * abs(gain)
     for k, sgn in faces:
         for step in (0.8, 0.4, 0.2, config.grow_step_m):
             while float(a[0, k]) - 0.5 * step >= config.a_min:
-                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp)
+                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp, backend)
                 if g2 < floor:
                     break
                 c, a, values, gain = c2, a2, v2, g2
     return c, a, values, gain
 
 
-def shrink_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig):
+def shrink_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig, backend=None):
     """Pull faces of a cuboid inwards while the inlier-count gain rises: a slab turned onto the room's axes
     may cover points seen beyond it (through a doorway, in a mirror), which count against it, until its
     edges move in. A slab's thickness stays. Returns (center, half, values, gain)."""
     axes = R[0].double()
     slab_axis = thin_axis(a[0].cpu().numpy())
     faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
-    values = values_one(pts, c, a, R, sp)
+    values = values_one(pts, c, a, R, sp, backend)
     for _ in range(config.grow_rounds):
         moved = False
         for k, sgn in faces:  # the best of the steps, so that a big one does not cut into the surface
             moves = [
-                _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp)
+                _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp, backend)
                 for step in (0.8, 0.4, 0.2, config.grow_step_m)
                 if float(a[0, k]) - 0.5 * step >= config.a_min
             ]
@@ -213,14 +227,14 @@ def shrink_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig)
     return c, a, values, gain
 
 
-def _move_face(pts, c, a, R, axes, k: int, side: float, delta: float, state, sp: ScoreParams):
+def _move_face(pts, c, a, R, axes, k: int, side: float, delta: float, state, sp: ScoreParams, backend=None):
     """The box with the half-size along axis k changed by ``delta`` (m) and the centre shifted so that only
     the face on ``side`` (+1 / -1) moves, by 2 * delta; the opposite face stays. Returns (center, half,
     values, gain) of the moved box."""
     c2 = c + (side * delta * axes[:, k]).to(c.dtype)[None]
     a2 = a.clone()
     a2[0, k] += delta
-    v2 = values_one(pts, c2, a2, R, sp)
+    v2 = values_one(pts, c2, a2, R, sp, backend)
     return c2, a2, v2, gain_of(v2, state)
 
 
@@ -229,51 +243,35 @@ def gain_of(values: torch.Tensor, state: torch.Tensor) -> float:
     return float((combine(values, state) - state).sum())
 
 
-def _refine_once(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator):
-    """Refine a cuboid on the points it newly explains; keep the result only if the gain holds."""
-    from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
-
+def _refine_once(
+    pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, gen: torch.Generator, backend
+):
+    """Refine a cuboid on the points it newly explains with ``backend``; keep the result only if the gain
+    holds."""
     inl = ((values >= 0.5) & (values > state)).nonzero().squeeze(1)
     if inl.numel() < config.min_set:
         return c, a, R, values, gain
     a_max = max(config.a_max, float(a.max()))  # a grown long slab keeps its length
     if inl.numel() > config.refine_max_points:
         inl = inl[torch.randperm(inl.numel(), generator=gen)[: config.refine_max_points].to(inl.device)]
-    if pts.device.type == "cpu":
-        out = refine_cuboid_fused(
-            pts[inl].numpy(), c[0].numpy(), a[0].numpy(), R[0].numpy(), config.a_min, a_max
-        )
-        c2, a2, R2 = (torch.from_numpy(np.asarray(x)) for x in out)
-    else:
-        c2, a2, R2 = refine_cuboid(pts[inl], c[0], a[0], R[0], config.a_min, a_max)
+    c2, a2, R2 = backend.refine(pts[inl], c[0], a[0], R[0], config.a_min, a_max)
     c2, a2, R2 = c2[None].to(c.dtype), a2[None].to(a.dtype), R2[None].to(R.dtype)
-    v2 = values_one(pts, c2, a2, R2, sp)
+    v2 = values_one(pts, c2, a2, R2, sp, backend)
     g2 = gain_of(v2, state)
     if g2 >= gain - 0.005 * abs(gain):
         return c2, a2, R2, v2, g2
     return c, a, R, values, gain
 
 
-def values_one(pts, c, a, R, sp: ScoreParams) -> torch.Tensor:
-    """f_OAI of one cuboid at every point (N,), float64."""
-    if pts.device.type == "cpu":
-        from cuboidcli.geometry.fused import cuboid_values
-
-        v = cuboid_values(
-            pts.double().numpy(),
-            c.double().numpy(),
-            a.double().numpy(),
-            R.double().numpy(),
-            sp.tau,
-            sp.beta,
-            sp.tau_c,
-            sp.occlusion_aware,
-        )
-        return torch.from_numpy(v[0])
-    return values_torch(pts.double(), c.double(), a.double(), R.double(), sp)[0]
+def values_one(pts, c, a, R, sp: ScoreParams, backend: ScoringBackend | None = None) -> torch.Tensor:
+    """f_OAI of one cuboid at every point (N,), float64, computed by ``backend`` (None: the default
+    backend of the points' device)."""
+    return (backend or backend_for("auto", pts.device)).values(pts, c, a, R, sp)[0]
 
 
-def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, alignment: Alignment):
+def align_winner(
+    pts, c, a, R, values, state, gain, sp: ScoreParams, config: FitConfig, alignment: Alignment, backend=None
+):
     """Turn a (refined, grown) winner upright or onto the room's axes, re-fit its extents to the points it
     explains, and grow it again.
 
@@ -307,13 +305,13 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
     def place(on: np.ndarray, rot: np.ndarray):
         cn, an = _refit_box(on, c0, a0, rot, config.a_min)
         c2, a2, R2 = (torch.from_numpy(x)[None].to(c.dtype) for x in (cn, an, rot))
-        v2 = values_one(pts, c2, a2, R2, sp)
+        v2 = values_one(pts, c2, a2, R2, sp, backend)
         return c2, a2, R2, v2, gain_of(v2, state)
 
     def grown(kind: str, c2, a2, R2, v2, g2):
         if g2 <= 0.0:  # nothing to grow from
             return kind, c2, a2, R2, v2, g2
-        c3, a3, v3, g3 = grow_cuboid(pts, c2, a2, R2, state, g2, sp, config)
+        c3, a3, v3, g3 = grow_cuboid(pts, c2, a2, R2, state, g2, sp, config, backend)
         return kind, c3, a3, R2, v3, g3
 
     def candidate(kind: str, rot: np.ndarray):
@@ -327,7 +325,7 @@ def align_winner(pts, c, a, R, values, state, gain, sp: ScoreParams, config: Fit
                 alt = place(on, rot)
                 if alt[4] > g2:
                     c2, a2, R2, v2, g2 = alt
-            c2, a2, v2, g2 = shrink_cuboid(pts, c2, a2, R2, state, g2, sp, config)
+            c2, a2, v2, g2 = shrink_cuboid(pts, c2, a2, R2, state, g2, sp, config, backend)
             other = grown(kind, c2, a2, R2, v2, g2)
             if other[5] > best[5]:
                 best = other

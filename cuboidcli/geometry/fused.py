@@ -8,8 +8,8 @@ sight in one interval, so a slab test finds the at most two occluding sides; f_I
 box. Pairs whose squared distance exceeds ``tau * (1 + 40 / beta)`` and which are not occluded get value 0
 instead of f_I < 1e-17. Tested against the torch reference kernels in :mod:`cuboidcli.geometry.kernels`.
 
-The numerical solver's fused loop (:mod:`cuboidcli.solvers.adam_fused`) shares :func:`camera_local` and
-:func:`slab_occlusion`; the scorer (:mod:`cuboidcli.fitting.scoring`) and assignment call the loops here.
+The numerical solver's fused loops (:mod:`cuboidcli.solvers.adam_fused`) share :func:`camera_local` and
+:func:`occluding_sides`; the scorer (:mod:`cuboidcli.fitting.scoring`) and assignment call the loops here.
 """
 
 from __future__ import annotations
@@ -86,28 +86,19 @@ def _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope,
     d2 = ex + (m * m if m > 0 else 0.0)
     if not oai:
         return _fi(d2, beta, inv_tau) if d2 < cutoff else 0.0
-    occ_in, ax_in, sg_in, occ_out, ax_out, sg_out = slab_occlusion(l0, l1, l2, a0, a1, a2, c0, c1, c2)
+    occ_in, ax_in, sg_in, d_in, occ_out, ax_out, sg_out, d_out = occluding_sides(
+        l0, l1, l2, a0, a1, a2, c0, c1, c2, e0, e1, e2
+    )
     if not (occ_in or occ_out):
         return _fi(d2, beta, inv_tau) if d2 < cutoff else 0.0
     # Occluded by one or two sides. f_IO = f_I - f_O of an occluding side is negative exactly when its
     # d_i^2 > tau, and then the point's value is the minimum over the occluding sides (non-occluding sides
     # have f_IO = f_I > 0). Only when every occluding side is within tau are all six sides needed.
     vmin = 1e300
-    for j in range(2):
-        if j == 0:
-            if not occ_in:
-                continue
-            k, s = ax_in, sg_in
-        else:
-            if not occ_out:
-                continue
-            k, s = ax_out, sg_out
-        ds = _side_d2(k, s, l0, l1, l2, a0, a1, a2, e0, e1, e2)
-        if ds >= cutoff:
-            f = -(slope * ds + offset)  # f_I underflows; f_O is on its linear branch (cutoff > tau_c)
-        else:
-            f = _fi(ds, beta, inv_tau) - _fo(ds, beta, inv_tau, tau_c, slope, offset)
-        vmin = min(vmin, f)
+    if occ_in:
+        vmin = min(vmin, _occluding_value(d_in, beta, inv_tau, tau_c, slope, offset, cutoff))
+    if occ_out:
+        vmin = min(vmin, _occluding_value(d_out, beta, inv_tau, tau_c, slope, offset, cutoff))
     if vmin < 0:
         return vmin
     vmax = -1e300
@@ -121,6 +112,29 @@ def _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope,
         vmin = min(vmin, f)
         vmax = max(vmax, f)
     return vmin if vmin < 0 else vmax
+
+
+@njit(cache=True, inline="always")
+def _occluding_value(ds, beta, inv_tau, tau_c, slope, offset, cutoff):
+    """f_IO = f_I - f_O of an occluding side at squared distance ds."""
+    if ds >= cutoff:
+        return -(slope * ds + offset)  # f_I underflows; f_O is on its linear branch (cutoff > tau_c)
+    return _fi(ds, beta, inv_tau) - _fo(ds, beta, inv_tau, tau_c, slope, offset)
+
+
+@njit(cache=True, inline="always")
+def occluding_sides(l0, l1, l2, a0, a1, a2, c0, c1, c2, e0, e1, e2):
+    """The sides of a box on a point's line of sight (:func:`slab_occlusion`) and the point's squared
+    distance to each (:func:`_side_d2`; e = the squared positive excess of the local coordinates l over
+    the half-sizes a, per axis, 0 where l is within a).
+
+    Returns (occ_in, axis_in, sign_in, d2_in, occ_out, axis_out, sign_out, d2_out); a d2 is 0 where its
+    side does not occlude. The values (:func:`_pair_value`) and the occlusion-aware distance of the
+    refinement (:mod:`cuboidcli.solvers.adam_fused`) both start from these."""
+    occ_in, ax_in, sg_in, occ_out, ax_out, sg_out = slab_occlusion(l0, l1, l2, a0, a1, a2, c0, c1, c2)
+    d_in = _side_d2(ax_in, sg_in, l0, l1, l2, a0, a1, a2, e0, e1, e2) if occ_in else 0.0
+    d_out = _side_d2(ax_out, sg_out, l0, l1, l2, a0, a1, a2, e0, e1, e2) if occ_out else 0.0
+    return occ_in, ax_in, sg_in, d_in, occ_out, ax_out, sg_out, d_out
 
 
 @njit(cache=True, inline="always")

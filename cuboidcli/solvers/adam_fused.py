@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from cuboidcli.geometry.fused import camera_local, slab_occlusion
+from cuboidcli.geometry.fused import camera_local, occluding_sides
 
 
 @njit(cache=True, inline="always")
@@ -243,6 +243,15 @@ def objective_and_grad(pts, p):
     return f, grad
 
 
+@njit(cache=True, inline="always")
+def _excess_sq(q):
+    """Per axis the squared positive excess q^2 where q = |l| - a > 0, else 0: (e0, e1, e2)."""
+    e0 = q[0] * q[0] if q[0] > 0 else 0.0
+    e1 = q[1] * q[1] if q[1] > 0 else 0.0
+    e2 = q[2] * q[2] if q[2] > 0 else 0.0
+    return e0, e1, e2
+
+
 @njit(cache=True)
 def _oa_objective_and_grad(pts, p, R, dR, grad):
     """Mean squared occlusion-aware distance d_oa(h, y)^2 of points to one cuboid and its gradient w.r.t.
@@ -281,25 +290,14 @@ def _oa_objective_and_grad(pts, p, R, dR, grad):
         best = d2
         side_k = -1
         side_s = 0.0
-        occ_in, ax_in, sg_in, occ_out, ax_out, sg_out = slab_occlusion(
-            loc[0], loc[1], loc[2], a[0], a[1], a[2], c0, c1, c2
+        e0, e1, e2 = _excess_sq(q)
+        occ_in, ax_in, sg_in, d_in, occ_out, ax_out, sg_out, d_out = occluding_sides(
+            loc[0], loc[1], loc[2], a[0], a[1], a[2], c0, c1, c2, e0, e1, e2
         )
-        for j in range(2):
-            if j == 0:
-                if not occ_in:
-                    continue
-                k, s = ax_in, sg_in
-            else:
-                if not occ_out:
-                    continue
-                k, s = ax_out, sg_out
-            dn = loc[k] - s * a[k]
-            ds = dn * dn
-            for c in range(3):
-                if c != k and q[c] > 0:
-                    ds += q[c] * q[c]
-            if ds > best:
-                best, side_k, side_s = ds, k, s
+        if occ_in and d_in > best:  # the farthest occluding side, if farther than the box itself
+            best, side_k, side_s = d_in, ax_in, sg_in
+        if occ_out and d_out > best:
+            best, side_k, side_s = d_out, ax_out, sg_out
         total += best
         for c in range(3):
             gy[c] = 0.0

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import torch
 from torch import Tensor
 
+from cuboidcli.geometry.backends import resolve_backend
 from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from cuboidcli.solvers.base import SizeBounds
@@ -69,7 +70,9 @@ class NumericalSolver:
     lr: float = 0.01
     iters: int = 50
     backend: str = "auto"
-    """auto (fused numba loop on CPU, torch elsewhere) | torch | fused."""
+    """auto (the fused numba loop on the CPU, torch elsewhere) | numba | torch, the rule of a fit's scoring
+    backend (:func:`~cuboidcli.geometry.backends.resolve_backend`; numba is refused on a GPU); "fused" is
+    another name for numba."""
     name: str = "numerical"
 
     def objective(self, points: Tensor, center: Tensor, axis_angle: Tensor, half: Tensor) -> Tensor:
@@ -80,8 +83,7 @@ class NumericalSolver:
         return d_sq.sum(1) * half.sum(-1)
 
     def __call__(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        use_fused = self.backend == "fused" or (self.backend == "auto" and minimal_sets.device.type == "cpu")
-        if use_fused:
+        if self._uses_numba(minimal_sets.device):
             return self._solve_fused(minimal_sets)
         return self._solve_torch(minimal_sets)
 
@@ -95,10 +97,13 @@ class NumericalSolver:
             r0 = torch.zeros_like(c0)
             r0[:, 2] = yaw
         rot_dof = 0 if fixed else 1
-        use_fused = self.backend == "fused" or (self.backend == "auto" and pts.device.type == "cpu")
-        if use_fused:
+        if self._uses_numba(pts.device):
             return self._adam_fused(pts, c0, r0, a0, rot_dof)
         return self._adam_torch(pts, c0.to(pts.dtype), r0.to(pts.dtype), a0.to(pts.dtype), rot_dof)
+
+    def _uses_numba(self, device: torch.device) -> bool:
+        """Whether sets on ``device`` are solved by the fused numba loop (else by torch)."""
+        return resolve_backend("numba" if self.backend == "fused" else self.backend, device) == "numba"
 
     def _solve_fused(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         pts = minimal_sets.detach()

@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from cuboidcli.fitting.scoring import ScoreParams, gains_torch, select_best
+from cuboidcli.fitting.backend import NumbaBackend
+from cuboidcli.fitting.scoring import ScoreParams, gains_torch
 from tests.geometry.test_fused import BETA, TAU, scene
 
 SP = ScoreParams(TAU, BETA, 2 * TAU)
@@ -34,7 +35,7 @@ def test_fast_path_rescores_exactly_the_top_hypotheses(prescore_points):
     pts, c, a, R, state = scene(seed=5)
     ref = gains_torch(pts, c, a, R, state, SP).numpy()
     gen = torch.Generator().manual_seed(0)
-    best, gain, g = select_best(pts, c, a, R, state, SP, gen, prescore_points=prescore_points)
+    best, gain, g = NumbaBackend().select_best(pts, c, a, R, state, SP, gen, prescore_points=prescore_points)
     finite = np.isfinite(g.numpy())
     assert finite.sum() == 64
     np.testing.assert_allclose(g.numpy()[finite], ref[finite], rtol=1e-9, atol=1e-9)
@@ -44,7 +45,7 @@ def test_fast_path_rescores_exactly_the_top_hypotheses(prescore_points):
 def test_exact_path_reports_every_gain_that_can_win():
     pts, c, a, R, state = scene(seed=6)
     ref = gains_torch(pts, c, a, R, state, SP).numpy()
-    best, gain, g = select_best(pts, c, a, R, state, SP, torch.Generator().manual_seed(1))
+    best, gain, g = NumbaBackend().select_best(pts, c, a, R, state, SP, torch.Generator().manual_seed(1))
     assert best == ref.argmax() and gain == pytest.approx(ref.max(), rel=1e-12)
     g = g.numpy()
     kept = np.isfinite(g)

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from cuboidcli.fitting.scoring import ScoreParams, gains_torch, select_best
+from cuboidcli.fitting.backend import NumbaBackend
+from cuboidcli.fitting.scoring import ScoreParams, gains_torch
 from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.fused import cuboid_values, score_gains
 from cuboidcli.geometry.rotations import axis_angle_to_matrix
@@ -62,11 +63,11 @@ def test_select_best_exact_and_fast_path():
     pts, c, a, R, state = scene(seed=4)
     sp = ScoreParams(TAU, BETA, 2 * TAU)
     ref = gains_torch(pts, c, a, R, state, sp).numpy()
-    best, gain, _ = select_best(
+    best, gain, _ = NumbaBackend().select_best(
         pts.float(), c.float(), a.float(), R.float(), state, sp, torch.Generator().manual_seed(0)
     )
     assert best == ref.argmax() and gain == pytest.approx(ref.max(), rel=1e-5)
-    best2, gain2, g2 = select_best(
+    best2, gain2, g2 = NumbaBackend().select_best(
         pts.float(),
         c.float(),
         a.float(),
@@ -88,3 +89,33 @@ def test_large_tau_c_of_the_training_schedule():
     ref = gains_torch(pts, c, a, R, state, sp).numpy()
     got = score_gains(pts.numpy(), c.numpy(), a.numpy(), R.numpy(), state.numpy(), TAU, BETA, 1.0)
     np.testing.assert_allclose(got, ref, rtol=1e-9, atol=1e-6)
+
+
+def test_occluding_sides_are_the_reference_occluders_and_their_distances():
+    """The shared helper of the values loop and the refinement: the sides on a point's line of sight
+    (chi_o, Eq. 6) and the point's squared distance to each, as the torch kernels compute them."""
+    from cuboidcli.geometry.fused import occluding_sides
+
+    pts, c, a, R, _ = scene(n=300, h=12, seed=9)
+    local = K.to_local(pts, c, R)
+    chi = K.occlusion_indicator(local, a, K.camera_local(c, R))
+    d2 = K.side_sq_distances(local, a)
+    cam = K.camera_local(c, R).numpy()
+    excess = (local.abs() - a[:, None]).clamp_min(0).square().numpy()
+    found, twice = 0, 0
+    for h in range(c.shape[0]):
+        for i in range(pts.shape[0]):
+            occ_in, ax_in, sg_in, d_in, occ_out, ax_out, sg_out, d_out = occluding_sides(
+                *local[h, i].tolist(), *a[h].tolist(), *cam[h].tolist(), *excess[h, i].tolist()
+            )
+            sides = {}
+            if occ_in:
+                sides[2 * ax_in + (sg_in < 0)] = d_in
+            if occ_out:
+                sides[2 * ax_out + (sg_out < 0)] = d_out
+            assert set(sides) == set(chi[h, i].nonzero().flatten().tolist()), (h, i)
+            for side, d in sides.items():
+                assert d == pytest.approx(float(d2[h, i, side]), abs=1e-12)
+            found += len(sides)
+            twice += len(sides) == 2
+    assert found > 200 and twice > 20  # many occluded pairs, some by two sides

@@ -151,3 +151,32 @@ def test_refinement_gradient_equals_autograd_and_removes_slab_bias():
     )
     near_face_z = c2[2] - a2[2]
     assert abs(near_face_z - 3.0) < 0.005
+
+
+def test_solver_backend_follows_the_scoring_backend_rule(monkeypatch):
+    """auto = the fused numba loop on the CPU; "numba" is the fused loop by the scoring backends' name and
+    is refused for sets off the CPU (meta tensors stand in for a GPU), for free and upright boxes alike."""
+    import cuboidcli.solvers.numerical as numerical
+
+    g = torch.Generator().manual_seed(2)
+    pts = torch.randn(8, 6, 3, generator=g) * 0.3 + torch.tensor([0.0, 0.0, 3.0])
+    used = []
+    for name in ("_adam_fused", "_adam_torch"):
+
+        def spy(self, *args, _name=name, _inner=getattr(numerical.NumericalSolver, name)):
+            used.append(_name)
+            return _inner(self, *args)
+
+        monkeypatch.setattr(numerical.NumericalSolver, name, spy)
+    for backend, expected in (("auto", "_adam_fused"), ("numba", "_adam_fused"), ("torch", "_adam_torch")):
+        used.clear()
+        NumericalSolver(backend=backend)(pts)
+        NumericalSolver(backend=backend).solve_upright(pts)
+        assert used == [expected, expected], backend
+    numba, fused = NumericalSolver(backend="numba")(pts), NumericalSolver(backend="fused")(pts)
+    assert all(torch.equal(x, y) for x, y in zip(numba, fused, strict=True))
+    for backend in ("numba", "fused"):
+        with pytest.raises(ValueError, match="CPU only"):
+            NumericalSolver(backend=backend)(pts.to("meta"))
+        with pytest.raises(ValueError, match="CPU only"):
+            NumericalSolver(backend=backend).solve_upright(pts.to("meta"))

@@ -1,0 +1,33 @@
+"""Which of the two kernel families runs on a device: the fused numba loops (:mod:`.fused`, the CPU only)
+or the torch kernels (:mod:`.kernels`, any device).
+
+One rule for every caller that has both: the scoring backend of a fit (:mod:`cuboidcli.fitting.backend`)
+and the numerical solver (:class:`cuboidcli.solvers.numerical.NumericalSolver`).
+"""
+
+from __future__ import annotations
+
+import torch
+
+#: Backend names: "auto" = numba on the CPU, torch elsewhere; "numba"; "torch".
+BACKENDS = ("auto", "numba", "torch")
+
+
+def resolve_backend(name: str, device: torch.device | str) -> str:
+    """The kernel family ``name`` (one of :data:`BACKENDS`) means on ``device``: "numba" or "torch".
+
+    Raises ValueError for an unknown name, or for "numba" on a device other than the CPU (the numba
+    loops read the points' memory directly and run on the CPU only)."""
+    kind = torch.device(device).type
+    if name == "auto":
+        return "numba" if kind == "cpu" else "torch"
+    if name == "torch":
+        return "torch"
+    if name == "numba":
+        if kind != "cpu":
+            raise ValueError(
+                f"the numba backend runs on the CPU only, but the points are on {kind}; "
+                "use backend='torch' or 'auto' on this device, or fit on the CPU"
+            )
+        return "numba"
+    raise ValueError(f"unknown backend {name!r}; choose one of {', '.join(BACKENDS)}")
