@@ -34,7 +34,8 @@ class CuboidsGroup(TyperGroup):
     """The top-level command group: quiet libraries, and one line instead of a traceback for a bug.
 
     Exceptions the commands raise on purpose (``typer.Exit`` after a one-line error, click's usage errors,
-    Ctrl-C) pass through; any other exception is an internal error: its traceback goes to a file
+    Ctrl-C) pass through; a closed output pipe ends the command quietly (status 1); any other exception
+    is an internal error: its traceback goes to a file
     (:func:`report_crash`) and the command exits with status 1, unless ``--debug`` asks to see it.
     """
 
@@ -43,6 +44,10 @@ class CuboidsGroup(TyperGroup):
             quiet_libraries()
         try:
             return super().invoke(ctx)
+        except BrokenPipeError:  # the reader went away (``cuboids fit --help | head``): nothing to report
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # the interpreter's last flush must not fail again
+            raise typer.Exit(1) from None
         except Exception as exc:
             if _debug(ctx) or _is_cli_exception(exc):
                 raise

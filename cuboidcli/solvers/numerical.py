@@ -17,6 +17,12 @@ from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from cuboidcli.solvers.base import SizeBounds
 
+#: Adam steps of a box on the room's axes (no rotation parameter): its objective is then nearly convex in
+#: the centre and sizes. On minimal sets drawn while fitting two NYU frames, 30 steps come within 1.2 % of
+#: the objective that 100 steps reach (median; 20 steps: 2.8 %), where a yaw-only box needs the full 50
+#: (3.8 %; 30 steps: 21 %).
+FIXED_AXES_ITERS = 30
+
 
 def pca_init(points: Tensor, bounds: SizeBounds) -> tuple[Tensor, Tensor, Tensor]:
     """Initial cuboid of each minimal set (H, C, 3): the bounding box in the PCA frame.
@@ -90,16 +96,18 @@ class NumericalSolver:
     def solve_upright(self, minimal_sets: Tensor, fixed: bool = False) -> tuple[Tensor, Tensor, Tensor]:
         """Yaw-only boxes: ``minimal_sets`` (H, C, 3) in a frame whose z axis is up; every box turns about z
         only (``fixed``: not at all, the frame's axes are the room's). Same returns as ``__call__``, in that
-        frame. One rotation parameter (or none) instead of three: the same Adam steps fit the rest."""
+        frame. One rotation parameter (or none) instead of three; a box on the room's axes converges in
+        :data:`FIXED_AXES_ITERS` Adam steps."""
         pts = minimal_sets.detach()
         with torch.no_grad():
             c0, a0, yaw = upright_init(pts.double(), self.bounds, fixed)
             r0 = torch.zeros_like(c0)
             r0[:, 2] = yaw
         rot_dof = 0 if fixed else 1
+        iters = min(self.iters, FIXED_AXES_ITERS) if fixed else self.iters
         if self._uses_numba(pts.device):
-            return self._adam_fused(pts, c0, r0, a0, rot_dof)
-        return self._adam_torch(pts, c0.to(pts.dtype), r0.to(pts.dtype), a0.to(pts.dtype), rot_dof)
+            return self._adam_fused(pts, c0, r0, a0, rot_dof, iters)
+        return self._adam_torch(pts, c0.to(pts.dtype), r0.to(pts.dtype), a0.to(pts.dtype), rot_dof, iters)
 
     def _uses_numba(self, device: torch.device) -> bool:
         """Whether sets on ``device`` are solved by the fused numba loop (else by torch)."""
@@ -111,7 +119,9 @@ class NumericalSolver:
             c0, a0, R0 = pca_init(pts.double(), self.bounds)
         return self._adam_fused(pts, c0, matrix_to_axis_angle(R0), a0, 3)
 
-    def _adam_fused(self, pts: Tensor, c0: Tensor, r0: Tensor, a0: Tensor, rot_dof: int):
+    def _adam_fused(
+        self, pts: Tensor, c0: Tensor, r0: Tensor, a0: Tensor, rot_dof: int, iters: int | None = None
+    ):
         """The fused CPU loop of :meth:`_adam_torch` (float64 in, the input's dtype out)."""
         from cuboidcli.solvers.adam_fused import adam_solve
 
@@ -123,7 +133,7 @@ class NumericalSolver:
             self.bounds.a_min,
             self.bounds.a_max,
             self.lr,
-            self.iters,
+            self.iters if iters is None else iters,
             out,
             rot_dof,
         )
@@ -137,9 +147,12 @@ class NumericalSolver:
             r0 = matrix_to_axis_angle(R0)
         return self._adam_torch(pts, c0, r0, a0, 3)
 
-    def _adam_torch(self, pts: Tensor, c0: Tensor, r0: Tensor, a0: Tensor, rot_dof: int):
-        """Adam from (c0, axis-angle r0, a0), keeping the best iterate per hypothesis; ``rot_dof`` as in
-        :func:`~cuboidcli.solvers.adam_fused.adam_solve`."""
+    def _adam_torch(
+        self, pts: Tensor, c0: Tensor, r0: Tensor, a0: Tensor, rot_dof: int, iters: int | None = None
+    ):
+        """Adam from (c0, axis-angle r0, a0) for ``iters`` steps (default ``self.iters``), keeping the best
+        iterate per hypothesis; ``rot_dof`` as in :func:`~cuboidcli.solvers.adam_fused.adam_solve`."""
+        iters = self.iters if iters is None else iters
         center = c0.clone().requires_grad_(True)
         rvec = r0.clone().requires_grad_(True)
         half = a0.clone().requires_grad_(True)
@@ -147,14 +160,14 @@ class NumericalSolver:
         best_loss = torch.full((pts.shape[0],), float("inf"), dtype=pts.dtype, device=pts.device)
         best = [c0.clone(), r0.clone(), a0.clone()]
         with torch.enable_grad():
-            for _ in range(self.iters + 1):
+            for _ in range(iters + 1):
                 loss = self.objective(pts, center, rvec, half)
                 with torch.no_grad():
                     better = loss < best_loss
                     best_loss = torch.where(better, loss, best_loss)
                     for b, p in zip(best, (center, rvec, half), strict=True):
                         b.copy_(torch.where(better[:, None], p, b))
-                if _ == self.iters:
+                if _ == iters:
                     break
                 opt.zero_grad(set_to_none=True)
                 loss.sum().backward()

@@ -247,3 +247,21 @@ def test_demo_writes_every_output(tmp_path):
     )
     d = json.loads((tmp_path / "demo" / "sample_cuboids.json").read_text())
     assert len(d["cuboids"]) >= 2  # at least the two walls of the sample room
+
+
+def test_a_closed_output_pipe_is_not_an_internal_error():
+    """``cuboids fit --help | head``: the reader takes the first lines and closes the pipe while the help
+    is still being written."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen(
+        [sys.executable, "-c", "from cuboidcli.cli.main import run; run()", "fit", "--help"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+    )
+    proc.stdout.read(2000)
+    proc.stdout.close()
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode in (0, 1)  # 0 when the whole help was written before the pipe closed
+    assert b"internal error" not in err and b"Traceback" not in err, err.decode()
