@@ -56,7 +56,7 @@ def _check_config(config: FitConfig) -> None:
         raise ValueError(f"sampler {config.sampler!r}: choose {', '.join(SAMPLERS)}")
     if config.solver not in SOLVERS:
         raise ValueError(f"solver {config.solver!r}: choose {', '.join(SOLVERS)}")
-    for name in ("hypotheses", "max_cuboids", "grid_step", "min_set"):
+    for name in ("hypotheses", "max_cuboids", "grid_step", "min_set", "upright_set_size"):
         if getattr(config, name) < 1:
             raise ValueError(f"{name} must be at least 1 (got {getattr(config, name)})")
 

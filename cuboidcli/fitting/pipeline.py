@@ -230,19 +230,21 @@ def fit_points(
 
 def _solve(solver, sets: torch.Tensor, config: FitConfig, alignment: Alignment | None):
     """Boxes for the minimal sets (H, C, 3): free, or under an alignment ``config.upright_fraction`` of
-    them upright (yaw-only; with "manhattan" half of those on the room's axes), the rest free."""
+    them upright (yaw-only, from the first ``config.upright_set_size`` points of their sets; with
+    "manhattan" half of those on the room's axes), the rest free."""
     n_up = 0 if alignment is None else int(round(config.upright_fraction * sets.shape[0]))
     if n_up == 0:
         return solver(sets)
     frame = torch.from_numpy(alignment.frame())
     n_free = sets.shape[0] - n_up
     parts = [solver(sets[:n_free])] if n_free else []
+    up = sets[:, : max(1, min(config.upright_set_size, sets.shape[1]))]
     if alignment.axes is not None:
         n_fixed = n_up // 2
-        parts.append(solve_upright(solver, sets[n_free : n_free + n_fixed], frame, fixed=True))
-        parts.append(solve_upright(solver, sets[n_free + n_fixed :], frame))
+        parts.append(solve_upright(solver, up[n_free : n_free + n_fixed], frame, fixed=True))
+        parts.append(solve_upright(solver, up[n_free + n_fixed :], frame))
     else:
-        parts.append(solve_upright(solver, sets[n_free:], frame))
+        parts.append(solve_upright(solver, up[n_free:], frame))
     return tuple(torch.cat([p[k] for p in parts if p[k].shape[0]]) for k in range(3))
 
 

@@ -139,3 +139,27 @@ def test_boxes_on_the_room_axes_converge_in_fewer_steps(monkeypatch):
     assert torch.allclose(c, c0.to(c.dtype)) and torch.allclose(a, a0.to(a.dtype))
     c1, _, _ = NumericalSolver().solve_upright(sets, fixed=False)
     assert not torch.allclose(c1, c0.to(c1.dtype))
+
+
+def test_upright_boxes_are_solved_from_the_first_points_of_their_sets():
+    seen = []
+
+    class Spy(NumericalSolver):
+        def __call__(self, minimal_sets):
+            seen.append(("free", minimal_sets.shape[1]))
+            return super().__call__(minimal_sets)
+
+        def solve_upright(self, minimal_sets, fixed=False):
+            seen.append(("fixed" if fixed else "yaw", minimal_sets.shape[1]))
+            return super().solve_upright(minimal_sets, fixed)
+
+    frame = Alignment("gravity", UP).frame()
+    al = Alignment(
+        "manhattan", UP / np.linalg.norm(UP), np.stack([UP / np.linalg.norm(UP), frame[:, 0], frame[:, 1]], 1)
+    )
+    sets = _box_sets(frame, 25.0, n_sets=40)
+    _solve(Spy(), sets, FitConfig(upright_fraction=0.5, upright_set_size=4), al)
+    assert seen == [("free", 6), ("fixed", 4), ("yaw", 4)]
+    seen.clear()
+    _solve(Spy(), sets, FitConfig(upright_fraction=0.5, upright_set_size=6), al)
+    assert seen == [("free", 6), ("fixed", 6), ("yaw", 6)]
