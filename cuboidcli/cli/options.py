@@ -5,6 +5,11 @@ its flags, ``--slab-max``); its default is the field's and its help text the fir
 docstring in fitting/config.py (:func:`field_help`). :func:`fit_config` turns a command's options into a
 FitConfig, with the command line's checks and messages. ``--fast`` and ``--device``, which are no plain
 fields, are defined here once for every command. ``tests/cli/test_options.py`` holds the commands to this.
+
+The ``cuboids train`` commands' options are defined here the same way (:func:`train_option`): an option
+named after a field of a training config (SamplerTrainConfig, SolverNetConfig, ...) takes the field's
+default and docstring; the options every trainer has (``--out``, ``--seed``, ``--device``, ...) are one
+function each. ``tests/cli/test_train_options.py`` holds the training commands to this.
 """
 
 from __future__ import annotations
@@ -13,15 +18,17 @@ import ast
 import dataclasses
 import inspect
 import math
+import sys
 from functools import cache
+from pathlib import Path
 
 import typer
 from rich.markup import escape
 
 from cuboidcli.api import SAMPLERS, SOLVERS, Fitter
 from cuboidcli.cli.common import fail, resolve_device
-from cuboidcli.fitting import config as config_module
 from cuboidcli.fitting.config import ALIGN_MODES, FitConfig
+from cuboidcli.learn.trainer import RunConfig
 
 FIELDS = tuple(f.name for f in dataclasses.fields(FitConfig))
 DEFAULTS = FitConfig()
@@ -34,12 +41,15 @@ DEVICE_DEFAULT = inspect.signature(Fitter).parameters["device"].default
 
 
 @cache
-def field_docs() -> dict[str, str]:
-    """The docstring of every FitConfig field (the string after it in fitting/config.py), dedented."""
-    tree = ast.parse(inspect.getsource(config_module))
-    cls = next(node for node in tree.body if isinstance(node, ast.ClassDef) and node.name == "FitConfig")
+def field_docs(cls: type = FitConfig) -> dict[str, str]:
+    """The docstring of every field of dataclass ``cls`` (the string after the field in its class body),
+    dedented: FitConfig's by default, or a training config's."""
+    tree = ast.parse(inspect.getsource(sys.modules[cls.__module__]))
+    body = next(
+        node for node in ast.walk(tree) if isinstance(node, ast.ClassDef) and node.name == cls.__name__
+    )
     docs = {}
-    for node, after in zip(cls.body, cls.body[1:], strict=False):
+    for node, after in zip(body.body, body.body[1:], strict=False):
         if (
             isinstance(node, ast.AnnAssign)
             and isinstance(node.target, ast.Name)
@@ -51,14 +61,14 @@ def field_docs() -> dict[str, str]:
     return docs
 
 
-def field_summary(name: str) -> str:
+def field_summary(name: str, cls: type = FitConfig) -> str:
     """The first paragraph of field ``name``'s docstring on one line, its ``literals`` as written."""
-    return " ".join(field_docs()[name].split("\n\n", 1)[0].split())
+    return " ".join(field_docs(cls)[name].split("\n\n", 1)[0].split())
 
 
-def field_help(name: str) -> str:
+def field_help(name: str, cls: type = FitConfig) -> str:
     """The help text of the option that sets field ``name``: :func:`field_summary` without literal marks."""
-    return field_summary(name).replace("``", "")
+    return field_summary(name, cls).replace("``", "")
 
 
 def flags(name: str) -> str:
@@ -111,6 +121,121 @@ def fast_option():
 
 def device_option():
     return typer.Option(DEVICE_DEFAULT, "--device", help="auto | cpu | cuda.")
+
+
+# The options of the cuboids train commands.
+
+
+def field_default(cls: type, name: str):
+    """The default of field ``name`` of dataclass ``cls``."""
+    field = {f.name: f for f in dataclasses.fields(cls)}[name]
+    return field.default if field.default_factory is dataclasses.MISSING else field.default_factory()
+
+
+def train_option(
+    cls: type,
+    name: str,
+    *flag_names: str,
+    doc: type | None = None,
+    text: str | None = None,
+    more: str = "",
+    show_default: bool | str = True,
+):
+    """The option of a ``cuboids train`` command that sets field ``name`` of the training config ``cls``:
+    its flags (``flag_names``; by default ``--`` + the name with dashes), the field's default, and as help
+    the first paragraph of the field's docstring (of the same field of ``doc`` where given; ``text``
+    instead where given), with ``more`` appended."""
+    flag_names = flag_names or (f"--{name.replace('_', '-')}",)
+    help_text = text if text is not None else field_help(name, doc or cls)
+    return typer.Option(
+        field_default(cls, name),
+        *flag_names,
+        help=escape(help_text + (f" {more}" if more else "")),
+        show_default=show_default,
+    )
+
+
+def trains(*configs: type):
+    """Decorator of a ``cuboids train`` command: the config dataclasses its options set fields of (an option
+    named after a field has the field's default; tests/cli/test_train_options.py checks it)."""
+
+    def mark(command):
+        command.configs = configs
+        return command
+
+    return mark
+
+
+def config_of(cls: type, options: dict, **given):
+    """Dataclass ``cls`` made from a command's options (its parameters by name): every field an option is
+    named after is set from it, ``given`` ones from ``given``; the others keep their defaults."""
+    names = {f.name for f in dataclasses.fields(cls) if f.init}
+    return cls(**{**{k: v for k, v in options.items() if k in names}, **given})
+
+
+def out_option(default: str):
+    return typer.Option(Path(default), "--out", "-o", help="Output folder: logs, checkpoints and weights.")
+
+
+def resume_option(more: str = ""):
+    return typer.Option(
+        None,
+        "--resume",
+        help=escape(
+            "Continue a run from the training state it saved (OUT/last.pt)" + (f" {more}" if more else ".")
+        ),
+    )
+
+
+def seed_option(cls: type, more: str = ""):
+    return train_option(cls, "seed", more=more)
+
+
+def threads_option(cls: type):
+    return train_option(cls, "threads", text="torch CPU threads (the machine's cores may be shared).")
+
+
+def train_device_option(cls: type):
+    return train_option(cls, "device", text="auto, cpu or cuda.")
+
+
+def epochs_option(cls: type, more: str = ""):
+    return train_option(cls, "epochs", more=more)
+
+
+def lr_option(cls: type, more: str = ""):
+    return train_option(cls, "lr", more=more)
+
+
+def max_minutes_option(cls: type, more: str = ""):
+    return train_option(cls, "max_minutes", more=more)
+
+
+def workers_option(cls: type):
+    return train_option(cls, "workers", "--workers", "-j", text="Threads reading and preparing the frames.")
+
+
+def scenes_per_epoch_option(cls: type):
+    return train_option(
+        cls, "scenes_per_epoch", text="Scenes per epoch.", show_default="every training frame once"
+    )
+
+
+def val_hypotheses_option(cls: type):
+    return train_option(cls, "val_hypotheses", text="|H| when fitting the val frames.")
+
+
+def val_frames_option(cls: type):
+    return train_option(cls, "val_frames", text="Validate on at most this many frames.", show_default="all")
+
+
+def backend_option():
+    return typer.Option(
+        field_default(RunConfig, "backend"),
+        "--backend",
+        help="torch.distributed backend under torchrun: gloo or nccl.",
+        show_default="nccl on CUDA, gloo on the CPU",
+    )
 
 
 def fit_config(options: dict, base: FitConfig | None = None, samplers=SAMPLERS, solvers=SOLVERS) -> FitConfig:

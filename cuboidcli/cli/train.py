@@ -16,6 +16,21 @@ from rich.progress import (
 )
 
 from cuboidcli.cli.common import console, fail, no_empty_folder, out, resolve_device
+from cuboidcli.cli.options import (
+    backend_option,
+    config_of,
+    lr_option,
+    max_minutes_option,
+    out_option,
+    resume_option,
+    seed_option,
+    threads_option,
+    train_device_option,
+    train_option,
+    trains,
+)
+from cuboidcli.learn.solver_train import SolverTrainConfig
+from cuboidcli.nets.solver import SolverNetConfig
 
 train_app = typer.Typer(help="Train the learned components (neural solver, ...).", no_args_is_help=True)
 
@@ -37,36 +52,25 @@ def _progress() -> Progress:
 
 
 @train_app.command("solver")
+@trains(SolverTrainConfig, SolverNetConfig)
 def solver(
-    iters: int = typer.Option(50000, "--iters", help="Optimizer steps (the paper: 150k at batch 4096, GPU)."),
-    batch: int = typer.Option(256, "--batch", help="Synthetic minimal sets per step and process."),
-    lr: float = typer.Option(3e-3, "--lr", help="Peak Adam learning rate (warm-up, then cosine decay)."),
-    width: int = typer.Option(64, "--width", help="Feature channels d of the network (128 in the paper)."),
-    layers: int = typer.Option(2, "--layers", help="Transformer encoder layers (4 in the paper)."),
-    heads: int = typer.Option(4, "--heads", help="Attention heads; must divide --width."),
-    ff: int = typer.Option(128, "--ff", help="Feed-forward hidden size of each layer."),
-    out_dir: Path = typer.Option(Path("runs/solver"), "--out", help="Folder for logs and checkpoints."),
-    resume: Path | None = typer.Option(
-        None,
-        "--resume",
-        help="Continue from a training checkpoint (last.pt / step_*.pt) exactly; "
-        "schedule, data and net shape are taken from it.",
+    iters: int = train_option(SolverTrainConfig, "iters"),
+    batch: int = train_option(SolverTrainConfig, "batch"),
+    lr: float = lr_option(SolverTrainConfig),
+    width: int = train_option(SolverNetConfig, "width"),
+    layers: int = train_option(SolverNetConfig, "layers"),
+    heads: int = train_option(SolverNetConfig, "heads", text="Attention heads; must divide --width."),
+    ff: int = train_option(SolverNetConfig, "ff"),
+    out_dir: Path = out_option("runs/solver"),
+    resume: Path | None = resume_option(
+        "or a step_*.pt snapshot, exactly; schedule, data and net shape are taken from it."
     ),
-    seed: int = typer.Option(0, "--seed", help="Seeds the initial weights and every synthetic batch."),
-    threads: int = typer.Option(1, "--threads", help="CPU threads for torch (the cores may be shared)."),
-    device: str = typer.Option("cpu", "--device", help="cpu, cuda or auto."),
-    max_minutes: float | None = typer.Option(
-        None,
-        "--max-minutes",
-        help="Time budget: the lr decays over whichever runs out first, --iters or these minutes of wall "
-        "time, and training stops there (not bit-reproducible then).",
-    ),
-    val_every: int = typer.Option(1000, "--val-every", help="Validate and keep the best every N steps."),
-    backend: str | None = typer.Option(
-        None,
-        "--backend",
-        help="torch.distributed backend under torchrun (gloo, nccl); default nccl on CUDA, gloo on CPU.",
-    ),
+    seed: int = seed_option(SolverTrainConfig),
+    threads: int = threads_option(SolverTrainConfig),
+    device: str = train_device_option(SolverTrainConfig),
+    max_minutes: float | None = max_minutes_option(SolverTrainConfig),
+    val_every: int = train_option(SolverTrainConfig, "val_every"),
+    backend: str | None = backend_option(),
 ) -> None:
     """Pre-train the neural cuboid solver on synthetic boxes; best weights go to OUT/best.pt.
 
@@ -81,9 +85,9 @@ def solver(
     draws --batch sets per step, so a step sees --batch x processes sets; --iters and the lr schedule
     count steps. Process 0 alone validates, prints and writes OUT, which must be shared for --resume.
     """
+    options = dict(locals())
     from cuboidcli.learn.distributed import launched_rank
-    from cuboidcli.learn.solver_train import SolverTrainConfig, train_solver
-    from cuboidcli.nets.solver import SolverNetConfig
+    from cuboidcli.learn.solver_train import train_solver
 
     for name, value in (
         ("--iters", iters),
@@ -103,19 +107,14 @@ def solver(
         fail(f"--lr must be positive (got {lr})")
     if resume is not None and not resume.is_file():
         fail(f"--resume {resume}: no such file; pass {out_dir / 'last.pt'} or a step_*.pt checkpoint")
-    cfg = SolverTrainConfig(
-        iters=iters,
-        batch=batch,
-        lr=lr,
+    cfg = config_of(
+        SolverTrainConfig,
+        options,
         warmup=min(500, max(1, iters // 20)),
-        seed=seed,
-        threads=threads,
         device=resolve_device(device),
-        max_minutes=max_minutes,
-        val_every=val_every,
         ckpt_every=val_every,
     )
-    net_cfg = SolverNetConfig(width=width, layers=layers, heads=heads, ff=ff)
+    net_cfg = config_of(SolverNetConfig, options)
 
     # Under torchrun only rank 0 reports; the others would draw duplicate progress bars.
     main_rank = launched_rank() == 0

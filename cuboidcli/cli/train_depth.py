@@ -20,8 +20,22 @@ from cuboidcli.cli.common import (
     resolve_device,
     user_errors,
 )
+from cuboidcli.cli.options import (
+    config_of,
+    epochs_option,
+    lr_option,
+    max_minutes_option,
+    out_option,
+    resume_option,
+    seed_option,
+    threads_option,
+    train_device_option,
+    train_option,
+    trains,
+)
+from cuboidcli.learn.depth_train import DepthTrainConfig
 
-_DEFAULTS_NOTE = "taken from the checkpoint with --resume"
+_DEFAULTS_NOTE = "With --resume: the checkpoint's."
 
 
 def _say(text: str, style: str | None = None) -> None:
@@ -91,46 +105,30 @@ class _EventPrinter:
             )
 
 
+@trains(DepthTrainConfig)
 def train_depth_cmd(
     ctx: typer.Context,
     data: Path = typer.Argument(
         ..., help="RGB-D dataset folder (the layout of 'cuboids synth'; splits.json gives train/val)."
     ),
-    epochs: int = typer.Option(
-        60,
-        "--epochs",
-        help="Passes over the training split. With --resume: the checkpoint's unless given (a larger value "
-        "extends a run and stretches its lr decay).",
+    epochs: int = epochs_option(
+        DepthTrainConfig,
+        more="With --resume: the checkpoint's unless given (a larger value extends a run and stretches "
+        "its lr decay).",
     ),
-    batch: int = typer.Option(8, "--batch", help=f"Images per optimizer step ({_DEFAULTS_NOTE})."),
-    lr: float = typer.Option(
-        1e-3, "--lr", help=f"Peak AdamW learning rate; warm-up, then cosine decay ({_DEFAULTS_NOTE})."
-    ),
-    l1_weight: float = typer.Option(
-        0.2, "--l1-weight", help=f"Weight of the L1 depth error (1/m) beside SILog ({_DEFAULTS_NOTE})."
-    ),
-    min_crop: float = typer.Option(
-        0.8, "--min-crop", help=f"Smallest random crop, fraction of the side; 1 = none ({_DEFAULTS_NOTE})."
-    ),
-    jitter: float = typer.Option(
-        0.3, "--jitter", help=f"Colour jitter: factors in [1 - j, 1 + j]; 0 = none ({_DEFAULTS_NOTE})."
-    ),
-    log_every: int = typer.Option(10, "--log-every", help="Print and log the training loss every N steps."),
-    out: Path = typer.Option(Path("runs/depth"), "--out", "-o", help="Folder for logs and checkpoints."),
-    resume: Path | None = typer.Option(
-        None, "--resume", help="Continue from OUT/last.pt: net, schedule and augmentation come from it."
-    ),
-    seed: int = typer.Option(
-        0, "--seed", help=f"Seeds the weights, the frame order and the augmentation ({_DEFAULTS_NOTE})."
-    ),
-    threads: int = typer.Option(1, "--threads", help="torch CPU threads (cores may be shared)."),
-    device: str = typer.Option("cpu", "--device", help="auto, cpu or cuda."),
-    max_minutes: float | None = typer.Option(
-        None,
-        "--max-minutes",
-        help="Training time budget, summed over resumed sessions: the lr decays over whichever runs out "
-        "first, --epochs or this, and the run then ends with a validation. With --resume: the checkpoint's "
-        "unless given.",
+    batch: int = train_option(DepthTrainConfig, "batch", more=_DEFAULTS_NOTE),
+    lr: float = lr_option(DepthTrainConfig, more=_DEFAULTS_NOTE),
+    l1_weight: float = train_option(DepthTrainConfig, "l1_weight", more=_DEFAULTS_NOTE),
+    min_crop: float = train_option(DepthTrainConfig, "min_crop", more=_DEFAULTS_NOTE),
+    jitter: float = train_option(DepthTrainConfig, "jitter", more=_DEFAULTS_NOTE),
+    log_every: int = train_option(DepthTrainConfig, "log_every"),
+    out: Path = out_option("runs/depth"),
+    resume: Path | None = resume_option("net, schedule and augmentation come from it."),
+    seed: int = seed_option(DepthTrainConfig, more=_DEFAULTS_NOTE),
+    threads: int = threads_option(DepthTrainConfig),
+    device: str = train_device_option(DepthTrainConfig),
+    max_minutes: float | None = max_minutes_option(
+        DepthTrainConfig, more="With --resume: the checkpoint's unless given."
     ),
     json_lines: bool = typer.Option(
         False, "--json", help="Print the training records as JSON lines on stdout instead of progress lines."
@@ -141,7 +139,8 @@ def train_depth_cmd(
     Images are resized to the net's 320x240 input; OUT also gets config.json, log.jsonl and last.pt.
     Use the weights with: cuboids fit IMAGE --depth-model OUT/best.pt ...
     """
-    from cuboidcli.learn.depth_train import RESUME_OVERRIDES, DepthTrainConfig, train_depth
+    options = dict(locals())
+    from cuboidcli.learn.depth_train import RESUME_OVERRIDES, train_depth
 
     check_training_paths(data, resume, out)
     if resume is None and (out / "last.pt").is_file():
@@ -149,21 +148,8 @@ def train_depth_cmd(
             f"--out {out} already holds a training run; continue it with --resume {out / 'last.pt'} "
             "or pick another --out"
         )
-    device = resolve_device(device)
     try:
-        cfg = DepthTrainConfig(
-            epochs=epochs,
-            batch=batch,
-            lr=lr,
-            l1_weight=l1_weight,
-            min_crop=min_crop,
-            jitter=jitter,
-            seed=seed,
-            threads=threads,
-            log_every=log_every,
-            max_minutes=max_minutes,
-            device=device,
-        )
+        cfg = config_of(DepthTrainConfig, options, device=resolve_device(device))
     except ValueError as e:
         fail(str(e))
 

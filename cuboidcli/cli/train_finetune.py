@@ -18,6 +18,26 @@ from cuboidcli.cli.common import (
     resolve_device,
     user_errors,
 )
+from cuboidcli.cli.options import (
+    backend_option,
+    config_of,
+    epochs_option,
+    lr_option,
+    max_minutes_option,
+    out_option,
+    resume_option,
+    scenes_per_epoch_option,
+    seed_option,
+    threads_option,
+    train_device_option,
+    train_option,
+    trains,
+    val_frames_option,
+    val_hypotheses_option,
+    workers_option,
+)
+from cuboidcli.learn.finetune import FinetuneConfig
+from cuboidcli.learn.sampler_train import SamplerTrainConfig
 
 
 def _print_event(record: dict) -> None:
@@ -54,46 +74,49 @@ def _print_event(record: dict) -> None:
         )
 
 
+@trains(FinetuneConfig)
 def train_finetune_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
-    rgb: bool = typer.Option(False, "--rgb", help="Fine-tune from RGB through the depth network too."),
-    solver: str = typer.Option("neural", "--solver", help="neural (fine-tuned) or numerical (needs --rgb)."),
+    rgb: bool = train_option(
+        FinetuneConfig, "rgb", "--rgb", text="Fine-tune from RGB through the depth network too."
+    ),
+    solver: str = train_option(
+        FinetuneConfig, "solver", text="neural (fine-tuned) or numerical (needs --rgb)."
+    ),
     sampler_weights: Path | None = typer.Option(
-        None, "--sampler-weights", help="Start: sampler .pt or folder [default: models/sampler_v2.pt]."
+        None, "--sampler-weights", help="Start: sampler .pt or folder.", show_default="models/sampler_v2.pt"
     ),
     solver_weights: Path | None = typer.Option(
-        None, "--solver-weights", help="Start: neural solver .pt [default: the shipped one]."
+        None, "--solver-weights", help="Start: neural solver .pt.", show_default="the shipped one"
     ),
     depth_weights: Path | None = typer.Option(
-        None, "--depth-weights", help="Start: depth network .pt [default: the shipped one]."
+        None, "--depth-weights", help="Start: depth network .pt.", show_default="the shipped one"
     ),
-    epochs: int = typer.Option(10, "--epochs", help="Epochs."),
-    lr: float = typer.Option(1e-5, "--lr", help="Adam lr of the sampler (paper: 1e-7); 0: fixed."),
-    solver_lr: float | None = typer.Option(None, "--solver-lr", help="Of the neural solver [default: --lr]."),
-    depth_lr: float | None = typer.Option(None, "--depth-lr", help="Of the depth network [default: --lr]."),
-    batch: int = typer.Option(2, "--batch", help="B: scenes per optimizer step (over all processes)."),
-    hypotheses: int = typer.Option(32, "--hypotheses", help="|H|: hypotheses per sampled set."),
-    instances: int = typer.Option(8, "--instances", help="|M|: sequential instances per scene."),
-    samples_k: int = typer.Option(2, "--samples-k", help="K: hypothesis sets per instance (>= 2)."),
-    alpha: float = typer.Option(1000.0, "--alpha", help="alpha: selection softmax scale."),
-    scenes_per_epoch: int | None = typer.Option(
-        None, "--scenes-per-epoch", help="Scenes per epoch [default: every training frame once]."
+    epochs: int = epochs_option(FinetuneConfig),
+    lr: float = lr_option(FinetuneConfig),
+    solver_lr: float | None = train_option(
+        FinetuneConfig, "solver_lr", text="Of the neural solver.", show_default="--lr"
     ),
-    grid_step: int = typer.Option(8, "--grid-step", help="Fitting points: every n-th pixel."),
-    val_hypotheses: int = typer.Option(512, "--val-hypotheses", help="|H| when fitting the val frames."),
-    val_frames: int | None = typer.Option(None, "--val-frames", help="Validate on at most this many frames."),
-    workers: int = typer.Option(1, "--workers", "-j", help="Threads reading and preparing the frames."),
-    resume: Path | None = typer.Option(None, "--resume", help="Continue from OUT/last.pt."),
-    out: Path = typer.Option(Path("runs/finetune"), "--out", "-o", help="Output folder."),
-    seed: int = typer.Option(0, "--seed", help="Seeds the frame order and every draw."),
-    threads: int = typer.Option(1, "--threads", help="torch CPU threads."),
-    device: str = typer.Option("cpu", "--device", help="auto, cpu or cuda."),
-    max_minutes: float | None = typer.Option(
-        None, "--max-minutes", help="Stop after the epoch during which this much time has passed."
+    depth_lr: float | None = train_option(
+        FinetuneConfig, "depth_lr", text="Of the depth network.", show_default="--lr"
     ),
-    backend: str | None = typer.Option(
-        None, "--backend", help="torch.distributed backend under torchrun (gloo) [default: gloo on the CPU]."
-    ),
+    batch: int = train_option(FinetuneConfig, "batch", doc=SamplerTrainConfig),
+    hypotheses: int = train_option(FinetuneConfig, "hypotheses", doc=SamplerTrainConfig),
+    instances: int = train_option(FinetuneConfig, "instances", doc=SamplerTrainConfig),
+    samples_k: int = train_option(FinetuneConfig, "samples_k", doc=SamplerTrainConfig),
+    alpha: float = train_option(FinetuneConfig, "alpha", doc=SamplerTrainConfig),
+    scenes_per_epoch: int | None = scenes_per_epoch_option(FinetuneConfig),
+    grid_step: int = train_option(FinetuneConfig, "grid_step", doc=SamplerTrainConfig),
+    val_hypotheses: int = val_hypotheses_option(FinetuneConfig),
+    val_frames: int | None = val_frames_option(FinetuneConfig),
+    workers: int = workers_option(FinetuneConfig),
+    resume: Path | None = resume_option(),
+    out: Path = out_option("runs/finetune"),
+    seed: int = seed_option(FinetuneConfig),
+    threads: int = threads_option(FinetuneConfig),
+    device: str = train_device_option(FinetuneConfig),
+    max_minutes: float | None = max_minutes_option(FinetuneConfig),
+    backend: str | None = backend_option(),
 ) -> None:
     """Fine-tune sampler + neural solver (depth input) or depth net + sampler (+ solver) (--rgb) end to end.
 
@@ -109,7 +132,8 @@ def train_finetune_cmd(
     Process 0 alone prints and writes OUT, which must be shared for --resume; resuming with the same
     number of processes continues the run exactly.
     """
-    from cuboidcli.learn.finetune import FinetuneConfig, finetune
+    options = dict(locals())
+    from cuboidcli.learn.finetune import finetune
 
     check_training_paths(data, resume, out)
     for name, path in (("--solver-weights", solver_weights), ("--depth-weights", depth_weights)):
@@ -118,28 +142,7 @@ def train_finetune_cmd(
     if sampler_weights is not None and not sampler_weights.exists():
         fail(f"--sampler-weights {sampler_weights}: no such file or folder")
     try:
-        cfg = FinetuneConfig(
-            rgb=rgb,
-            solver=solver,
-            epochs=epochs,
-            lr=lr,
-            solver_lr=solver_lr,
-            depth_lr=depth_lr,
-            batch=batch,
-            hypotheses=hypotheses,
-            instances=instances,
-            samples_k=samples_k,
-            alpha=alpha,
-            scenes_per_epoch=scenes_per_epoch,
-            grid_step=grid_step,
-            seed=seed,
-            threads=threads,
-            workers=workers,
-            device=resolve_device(device),
-            val_hypotheses=val_hypotheses,
-            val_frames=val_frames,
-            max_minutes=max_minutes,
-        )
+        cfg = config_of(FinetuneConfig, options, device=resolve_device(device))
     except ValueError as e:
         fail(str(e))
     with user_errors(), no_empty_folder(out):

@@ -19,6 +19,30 @@ from cuboidcli.cli.common import (
     resolve_device,
     user_errors,
 )
+from cuboidcli.cli.options import (
+    backend_option,
+    config_of,
+    epochs_option,
+    lr_option,
+    max_minutes_option,
+    out_option,
+    resume_option,
+    scenes_per_epoch_option,
+    seed_option,
+    threads_option,
+    train_device_option,
+    train_option,
+    trains,
+    val_frames_option,
+    val_hypotheses_option,
+    workers_option,
+)
+from cuboidcli.learn.sampler_train import SamplerTrainConfig
+from cuboidcli.nets.sampler import SamplerNetConfig
+
+#: --prior: the sequential prior of the shipped sampler (models/sampler_v2.md); SamplerNetConfig keeps the
+#: paper's "none" for nets built without a config.
+PRIOR = "unexplained"
 
 
 def _print_event(record: dict) -> None:
@@ -61,50 +85,49 @@ def _print_event(record: dict) -> None:
         )
 
 
+@trains(SamplerTrainConfig, SamplerNetConfig)
 def train_sampler_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
-    epochs: int = typer.Option(25, "--epochs", help="N_e: epochs (also the length of the tau_c schedule)."),
-    lr: float = typer.Option(1e-4, "--lr", help="Adam learning rate (the paper: 1e-5 on a GPU)."),
-    batch: int = typer.Option(2, "--batch", help="B: scenes per optimizer step (over all processes)."),
-    hypotheses: int = typer.Option(32, "--hypotheses", help="|H|: hypotheses per sampled set."),
-    instances: int = typer.Option(8, "--instances", help="|M|: sequential instances per scene."),
-    samples_k: int = typer.Option(2, "--samples-k", help="K: hypothesis sets per instance (>= 2)."),
-    alpha: float = typer.Option(10.0, "--alpha", help="alpha: selection softmax scale (1000 fine-tuning)."),
-    scenes_per_epoch: int | None = typer.Option(
-        None, "--scenes-per-epoch", help="Scenes per epoch [default: every training frame once]."
+    epochs: int = epochs_option(SamplerTrainConfig),
+    lr: float = lr_option(SamplerTrainConfig),
+    batch: int = train_option(SamplerTrainConfig, "batch"),
+    hypotheses: int = train_option(SamplerTrainConfig, "hypotheses"),
+    instances: int = train_option(SamplerTrainConfig, "instances"),
+    samples_k: int = train_option(SamplerTrainConfig, "samples_k"),
+    alpha: float = train_option(SamplerTrainConfig, "alpha", more="1000 when fine-tuning."),
+    scenes_per_epoch: int | None = scenes_per_epoch_option(SamplerTrainConfig),
+    grid_step: int = train_option(SamplerTrainConfig, "grid_step"),
+    width: int = train_option(SamplerNetConfig, "width", text="Channels of the network on the fitting grid."),
+    blocks: int = train_option(
+        SamplerNetConfig, "blocks", text="Residual blocks of the network on the fitting grid."
     ),
-    grid_step: int = typer.Option(8, "--grid-step", help="Fitting points: every n-th pixel (8: 60x80)."),
-    width: int = typer.Option(96, "--width", help="Channels of the network on the fitting grid."),
-    blocks: int = typer.Option(4, "--blocks", help="Residual blocks of the network on the fitting grid."),
-    upsample: int = typer.Option(
-        4, "--upsample", help="Input resolution: the fitting grid times this power of two (8: the paper)."
+    upsample: int = train_option(
+        SamplerNetConfig,
+        "upsample",
+        text="Input resolution: the fitting grid times this power of two (8: the paper).",
     ),
     prior: str = typer.Option(
-        "unexplained", "--prior", help="'unexplained': maps on top of the sequential weights; 'none': plain."
+        PRIOR, "--prior", help="'unexplained': maps on top of the sequential weights; 'none': plain."
     ),
-    kappa_corr: float = typer.Option(1.0, "--kappa-corr", help="Weight of the map-correlation loss."),
-    tau_c_start: float = typer.Option(
-        1.0, "--tau-c-start", help="tau_c at epoch 0, m^2 (the paper's 1; 0.008 = the test value throughout)."
+    kappa_corr: float = train_option(SamplerTrainConfig, "kappa_corr"),
+    tau_c_start_sq_m2: float = train_option(
+        SamplerTrainConfig, "tau_c_start_sq_m2", "--tau-c-start", more="0.008: the test value throughout."
     ),
-    corr_mode: str = typer.Option(
-        "positive", "--corr-mode", help="'positive': penalise positive correlations only; 'paper': the sum."
+    corr_mode: str = train_option(
+        SamplerTrainConfig,
+        "corr_mode",
+        text="'positive': penalise positive correlations only; 'paper': the sum.",
     ),
-    val_hypotheses: int = typer.Option(256, "--val-hypotheses", help="|H| when fitting the val frames."),
-    val_frames: int | None = typer.Option(None, "--val-frames", help="Validate on at most this many frames."),
-    workers: int = typer.Option(1, "--workers", "-j", help="Threads reading and preparing the frames."),
-    resume: Path | None = typer.Option(None, "--resume", help="Continue from a last.pt / epoch_*.pt file."),
-    out: Path = typer.Option(Path("runs/sampler"), "--out", "-o", help="Output folder."),
-    seed: int = typer.Option(0, "--seed", help="Seeds weights, frame order and every draw."),
-    threads: int = typer.Option(1, "--threads", help="torch CPU threads."),
-    device: str = typer.Option("cpu", "--device", help="auto, cpu or cuda."),
-    max_minutes: float | None = typer.Option(
-        None, "--max-minutes", help="Stop after the epoch during which this much time has passed."
-    ),
-    backend: str | None = typer.Option(
-        None,
-        "--backend",
-        help="torch.distributed backend under torchrun (gloo, nccl); default nccl on CUDA, gloo on CPU.",
-    ),
+    val_hypotheses: int = val_hypotheses_option(SamplerTrainConfig),
+    val_frames: int | None = val_frames_option(SamplerTrainConfig),
+    workers: int = workers_option(SamplerTrainConfig),
+    resume: Path | None = resume_option("or an epoch_*.pt snapshot."),
+    out: Path = out_option("runs/sampler"),
+    seed: int = seed_option(SamplerTrainConfig),
+    threads: int = threads_option(SamplerTrainConfig),
+    device: str = train_device_option(SamplerTrainConfig),
+    max_minutes: float | None = max_minutes_option(SamplerTrainConfig),
+    backend: str | None = backend_option(),
 ) -> None:
     """Train the sampling-weight network on DATA; the best weights go to OUT/sampler_v2.pt.
 
@@ -119,36 +142,15 @@ def train_sampler_cmd(
     Process 0 alone prints and writes OUT, which must be shared for --resume; resuming with the same
     number of processes continues the run exactly.
     """
-    from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler
-    from cuboidcli.nets.sampler import SamplerNetConfig
+    options = dict(locals())
+    from cuboidcli.learn.sampler_train import train_sampler
 
     check_training_paths(data, resume, out)
     if blocks < 0:
         fail(f"--blocks must be at least 0 (got {blocks})")
-    device = resolve_device(device)
     try:
-        cfg = SamplerTrainConfig(
-            epochs=epochs,
-            lr=lr,
-            batch=batch,
-            hypotheses=hypotheses,
-            instances=instances,
-            samples_k=samples_k,
-            alpha=alpha,
-            kappa_corr=kappa_corr,
-            tau_c_start_sq_m2=tau_c_start,
-            corr_mode=corr_mode,
-            scenes_per_epoch=scenes_per_epoch,
-            grid_step=grid_step,
-            seed=seed,
-            threads=threads,
-            device=device,
-            workers=workers,
-            val_hypotheses=val_hypotheses,
-            val_frames=val_frames,
-            max_minutes=max_minutes,
-        )
-        net_cfg = SamplerNetConfig(width=width, blocks=blocks, upsample=upsample, prior=prior)
+        cfg = config_of(SamplerTrainConfig, options, device=resolve_device(device))
+        net_cfg = config_of(SamplerNetConfig, options)
     except ValueError as e:
         fail(str(e))
     with user_errors(), no_empty_folder(out):

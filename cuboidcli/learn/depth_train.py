@@ -56,8 +56,9 @@ class DepthTrainConfig:
     epochs: int = 60
     """Passes over the training split."""
     batch: int = 8
+    """Images per optimizer step."""
     lr: float = 1e-3
-    """Peak AdamW learning rate."""
+    """Peak AdamW learning rate; warm-up, then cosine decay."""
     weight_decay: float = 1e-4
     warmup: int = 100
     """Linear warm-up steps."""
@@ -80,6 +81,7 @@ class DepthTrainConfig:
     threads: int = 1
     """torch CPU threads (the machine's cores are shared)."""
     log_every: int = 10
+    """Print and log the training loss every N steps."""
     max_minutes: float | None = None
     """Budget of training wall time (summed over resumed sessions): the cosine decay then follows whichever
     budget runs out faster, epochs or time, and the run ends with a validation when either is spent."""

@@ -116,6 +116,7 @@ class FinetuneConfig:
     solver: str = "neural"
     """neural (fine-tuned too) | numerical (implicit-function gradients; not trained)."""
     epochs: int = 10
+    """Epochs."""
     lr: float = 1e-5
     """Adam learning rate of the sampling-weight network (the paper: 1e-7 for 25 GPU epochs); 0 keeps a
     network fixed (also for solver_lr and depth_lr)."""
@@ -140,6 +141,7 @@ class FinetuneConfig:
     scenes_per_epoch: int | None = None
     grid_step: int = 8
     seed: int = 0
+    """Seeds the frame order and every draw."""
     threads: int = 1
     device: str = "cpu"
     workers: int = 1
@@ -148,6 +150,7 @@ class FinetuneConfig:
     val_frames: int | None = None
     validate_initial: bool = True
     max_minutes: float | None = None
+    """Stop after the epoch during which this much wall time (in this process) has passed."""
 
     def __post_init__(self) -> None:
         if self.solver not in SOLVERS:

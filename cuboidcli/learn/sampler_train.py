@@ -98,11 +98,13 @@ class SamplerTrainConfig:
     epochs: int = 25
     """N_e: epochs (also the length of the tau_c schedule)."""
     lr: float = 1e-4
-    """Adam learning rate. The paper uses 1e-5 for 25 epochs of the 795 NYU training frames (~10k Adam
+    """Adam learning rate (the paper: 1e-5 on a GPU).
+
+    The paper uses 1e-5 for 25 epochs of the 795 NYU training frames (~10k Adam
     steps at B = 2); a CPU budget of a few thousand steps moves each weight by at most ~steps * lr, so the
     default is 10x the paper's. Lower it (or use 1e-5) for long runs if the validation AUC oscillates."""
     batch: int = 2
-    """B: scenes per optimizer step."""
+    """B: scenes per optimizer step (over all processes)."""
     hypotheses: int = 32
     """|H|: hypotheses per sampled set."""
     instances: int = 8
@@ -112,6 +114,7 @@ class SamplerTrainConfig:
     alpha: float = 10.0
     """alpha: selection softmax scale on gains in fractions of the points."""
     kappa_corr: float = 1.0
+    """Weight of the map-correlation loss."""
     corr_mode: str = "positive"
     """l_corr variant (see sampler_loss.LossParams.corr_mode); "paper" is the paper's plain sum."""
     kappa_entropy: float = 1.0
@@ -123,7 +126,7 @@ class SamplerTrainConfig:
     scenes_per_epoch: int | None = None
     """Scenes per epoch; None = every training frame once (the paper used 500 random scenes for SMH)."""
     grid_step: int = 8
-    """Fitting points: every grid_step-th pixel (8 -> 60x80 at 480x640)."""
+    """Fitting points: every n-th pixel (8: 60x80 of 480x640)."""
     seed: int = 0
     """Seeds the initial weights, the frame order of each epoch and every draw."""
     threads: int = 1

@@ -70,7 +70,7 @@ class SolverTrainConfig:
     batch: int = 256
     """Minimal sets per step and process: a run on N processes takes batch * N sets per step."""
     lr: float = 3e-3
-    """Peak Adam learning rate (the paper: 1e-4, constant)."""
+    """Peak Adam learning rate: warm-up, then cosine decay (the paper: 1e-4, constant)."""
     warmup: int = 500
     """Linear warm-up steps from lr / warmup to lr."""
     final_lr_ratio: float = 0.02
