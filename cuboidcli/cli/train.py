@@ -15,20 +15,8 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+from cuboidcli.cli import options as opt
 from cuboidcli.cli.common import console, fail, no_empty_folder, out, resolve_device
-from cuboidcli.cli.options import (
-    backend_option,
-    config_of,
-    lr_option,
-    max_minutes_option,
-    out_option,
-    resume_option,
-    seed_option,
-    threads_option,
-    train_device_option,
-    train_option,
-    trains,
-)
 from cuboidcli.learn.solver_train import SolverTrainConfig
 from cuboidcli.nets.solver import SolverNetConfig
 
@@ -52,25 +40,25 @@ def _progress() -> Progress:
 
 
 @train_app.command("solver")
-@trains(SolverTrainConfig, SolverNetConfig)
+@opt.trains(SolverTrainConfig, SolverNetConfig)
 def solver(
-    iters: int = train_option(SolverTrainConfig, "iters"),
-    batch: int = train_option(SolverTrainConfig, "batch"),
-    lr: float = lr_option(SolverTrainConfig),
-    width: int = train_option(SolverNetConfig, "width"),
-    layers: int = train_option(SolverNetConfig, "layers"),
-    heads: int = train_option(SolverNetConfig, "heads", text="Attention heads; must divide --width."),
-    ff: int = train_option(SolverNetConfig, "ff"),
-    out_dir: Path = out_option("runs/solver"),
-    resume: Path | None = resume_option(
+    iters: int = opt.train_option(SolverTrainConfig, "iters"),
+    batch: int = opt.train_option(SolverTrainConfig, "batch"),
+    lr: float = opt.lr_option(SolverTrainConfig),
+    width: int = opt.train_option(SolverNetConfig, "width"),
+    layers: int = opt.train_option(SolverNetConfig, "layers"),
+    heads: int = opt.train_option(SolverNetConfig, "heads", text="Attention heads; must divide --width."),
+    ff: int = opt.train_option(SolverNetConfig, "ff"),
+    out_dir: Path = opt.out_option("runs/solver"),
+    resume: Path | None = opt.resume_option(
         "or a step_*.pt snapshot, exactly; schedule, data and net shape are taken from it."
     ),
-    seed: int = seed_option(SolverTrainConfig),
-    threads: int = threads_option(SolverTrainConfig),
-    device: str = train_device_option(SolverTrainConfig),
-    max_minutes: float | None = max_minutes_option(SolverTrainConfig),
-    val_every: int = train_option(SolverTrainConfig, "val_every"),
-    backend: str | None = backend_option(),
+    seed: int = opt.seed_option(SolverTrainConfig),
+    threads: int = opt.threads_option(SolverTrainConfig),
+    device: str = opt.train_device_option(SolverTrainConfig),
+    max_minutes: float | None = opt.max_minutes_option(SolverTrainConfig),
+    val_every: int = opt.train_option(SolverTrainConfig, "val_every"),
+    backend: str | None = opt.backend_option(),
 ) -> None:
     """Pre-train the neural cuboid solver on synthetic boxes; best weights go to OUT/best.pt.
 
@@ -107,14 +95,14 @@ def solver(
         fail(f"--lr must be positive (got {lr})")
     if resume is not None and not resume.is_file():
         fail(f"--resume {resume}: no such file; pass {out_dir / 'last.pt'} or a step_*.pt checkpoint")
-    cfg = config_of(
+    cfg = opt.config_of(
         SolverTrainConfig,
         options,
         warmup=min(500, max(1, iters // 20)),
         device=resolve_device(device),
         ckpt_every=val_every,
     )
-    net_cfg = config_of(SolverNetConfig, options)
+    net_cfg = opt.config_of(SolverNetConfig, options)
 
     # Under torchrun only rank 0 reports; the others would draw duplicate progress bars.
     main_rank = launched_rank() == 0

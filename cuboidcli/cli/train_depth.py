@@ -12,6 +12,7 @@ from pathlib import Path
 
 import typer
 
+from cuboidcli.cli import options as opt
 from cuboidcli.cli.common import (
     check_training_paths,
     console,
@@ -19,19 +20,6 @@ from cuboidcli.cli.common import (
     no_empty_folder,
     resolve_device,
     user_errors,
-)
-from cuboidcli.cli.options import (
-    config_of,
-    epochs_option,
-    lr_option,
-    max_minutes_option,
-    out_option,
-    resume_option,
-    seed_option,
-    threads_option,
-    train_device_option,
-    train_option,
-    trains,
 )
 from cuboidcli.learn.depth_train import DepthTrainConfig
 
@@ -105,29 +93,29 @@ class _EventPrinter:
             )
 
 
-@trains(DepthTrainConfig)
+@opt.trains(DepthTrainConfig)
 def train_depth_cmd(
     ctx: typer.Context,
     data: Path = typer.Argument(
         ..., help="RGB-D dataset folder (the layout of 'cuboids synth'; splits.json gives train/val)."
     ),
-    epochs: int = epochs_option(
+    epochs: int = opt.epochs_option(
         DepthTrainConfig,
         more="With --resume: the checkpoint's unless given (a larger value extends a run and stretches "
         "its lr decay).",
     ),
-    batch: int = train_option(DepthTrainConfig, "batch", more=_DEFAULTS_NOTE),
-    lr: float = lr_option(DepthTrainConfig, more=_DEFAULTS_NOTE),
-    l1_weight: float = train_option(DepthTrainConfig, "l1_weight", more=_DEFAULTS_NOTE),
-    min_crop: float = train_option(DepthTrainConfig, "min_crop", more=_DEFAULTS_NOTE),
-    jitter: float = train_option(DepthTrainConfig, "jitter", more=_DEFAULTS_NOTE),
-    log_every: int = train_option(DepthTrainConfig, "log_every"),
-    out: Path = out_option("runs/depth"),
-    resume: Path | None = resume_option("net, schedule and augmentation come from it."),
-    seed: int = seed_option(DepthTrainConfig, more=_DEFAULTS_NOTE),
-    threads: int = threads_option(DepthTrainConfig),
-    device: str = train_device_option(DepthTrainConfig),
-    max_minutes: float | None = max_minutes_option(
+    batch: int = opt.train_option(DepthTrainConfig, "batch", more=_DEFAULTS_NOTE),
+    lr: float = opt.lr_option(DepthTrainConfig, more=_DEFAULTS_NOTE),
+    l1_weight: float = opt.train_option(DepthTrainConfig, "l1_weight", more=_DEFAULTS_NOTE),
+    min_crop: float = opt.train_option(DepthTrainConfig, "min_crop", more=_DEFAULTS_NOTE),
+    jitter: float = opt.train_option(DepthTrainConfig, "jitter", more=_DEFAULTS_NOTE),
+    log_every: int = opt.train_option(DepthTrainConfig, "log_every"),
+    out: Path = opt.out_option("runs/depth"),
+    resume: Path | None = opt.resume_option("net, schedule and augmentation come from it."),
+    seed: int = opt.seed_option(DepthTrainConfig, more=_DEFAULTS_NOTE),
+    threads: int = opt.threads_option(DepthTrainConfig),
+    device: str = opt.train_device_option(DepthTrainConfig),
+    max_minutes: float | None = opt.max_minutes_option(
         DepthTrainConfig, more="With --resume: the checkpoint's unless given."
     ),
     json_lines: bool = typer.Option(
@@ -149,7 +137,7 @@ def train_depth_cmd(
             "or pick another --out"
         )
     try:
-        cfg = config_of(DepthTrainConfig, options, device=resolve_device(device))
+        cfg = opt.config_of(DepthTrainConfig, options, device=resolve_device(device))
     except ValueError as e:
         fail(str(e))
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import typer
 
+from cuboidcli.cli import options as opt
 from cuboidcli.cli.common import (
     check_training_paths,
     console,
@@ -17,24 +18,6 @@ from cuboidcli.cli.common import (
     no_empty_folder,
     resolve_device,
     user_errors,
-)
-from cuboidcli.cli.options import (
-    backend_option,
-    config_of,
-    epochs_option,
-    lr_option,
-    max_minutes_option,
-    out_option,
-    resume_option,
-    scenes_per_epoch_option,
-    seed_option,
-    threads_option,
-    train_device_option,
-    train_option,
-    trains,
-    val_frames_option,
-    val_hypotheses_option,
-    workers_option,
 )
 from cuboidcli.learn.finetune import FinetuneConfig
 from cuboidcli.learn.sampler_train import SamplerTrainConfig
@@ -74,13 +57,13 @@ def _print_event(record: dict) -> None:
         )
 
 
-@trains(FinetuneConfig)
+@opt.trains(FinetuneConfig)
 def train_finetune_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
-    rgb: bool = train_option(
+    rgb: bool = opt.train_option(
         FinetuneConfig, "rgb", "--rgb", text="Fine-tune from RGB through the depth network too."
     ),
-    solver: str = train_option(
+    solver: str = opt.train_option(
         FinetuneConfig, "solver", text="neural (fine-tuned) or numerical (needs --rgb)."
     ),
     sampler_weights: Path | None = typer.Option(
@@ -92,31 +75,31 @@ def train_finetune_cmd(
     depth_weights: Path | None = typer.Option(
         None, "--depth-weights", help="Start: depth network .pt.", show_default="the shipped one"
     ),
-    epochs: int = epochs_option(FinetuneConfig),
-    lr: float = lr_option(FinetuneConfig),
-    solver_lr: float | None = train_option(
+    epochs: int = opt.epochs_option(FinetuneConfig),
+    lr: float = opt.lr_option(FinetuneConfig),
+    solver_lr: float | None = opt.train_option(
         FinetuneConfig, "solver_lr", text="Of the neural solver.", show_default="--lr"
     ),
-    depth_lr: float | None = train_option(
+    depth_lr: float | None = opt.train_option(
         FinetuneConfig, "depth_lr", text="Of the depth network.", show_default="--lr"
     ),
-    batch: int = train_option(FinetuneConfig, "batch", doc=SamplerTrainConfig),
-    hypotheses: int = train_option(FinetuneConfig, "hypotheses", doc=SamplerTrainConfig),
-    instances: int = train_option(FinetuneConfig, "instances", doc=SamplerTrainConfig),
-    samples_k: int = train_option(FinetuneConfig, "samples_k", doc=SamplerTrainConfig),
-    alpha: float = train_option(FinetuneConfig, "alpha", doc=SamplerTrainConfig),
-    scenes_per_epoch: int | None = scenes_per_epoch_option(FinetuneConfig),
-    grid_step: int = train_option(FinetuneConfig, "grid_step", doc=SamplerTrainConfig),
-    val_hypotheses: int = val_hypotheses_option(FinetuneConfig),
-    val_frames: int | None = val_frames_option(FinetuneConfig),
-    workers: int = workers_option(FinetuneConfig),
-    resume: Path | None = resume_option(),
-    out: Path = out_option("runs/finetune"),
-    seed: int = seed_option(FinetuneConfig),
-    threads: int = threads_option(FinetuneConfig),
-    device: str = train_device_option(FinetuneConfig),
-    max_minutes: float | None = max_minutes_option(FinetuneConfig),
-    backend: str | None = backend_option(),
+    batch: int = opt.train_option(FinetuneConfig, "batch", doc=SamplerTrainConfig),
+    hypotheses: int = opt.train_option(FinetuneConfig, "hypotheses", doc=SamplerTrainConfig),
+    instances: int = opt.train_option(FinetuneConfig, "instances", doc=SamplerTrainConfig),
+    samples_k: int = opt.train_option(FinetuneConfig, "samples_k", doc=SamplerTrainConfig),
+    alpha: float = opt.train_option(FinetuneConfig, "alpha", doc=SamplerTrainConfig),
+    scenes_per_epoch: int | None = opt.scenes_per_epoch_option(FinetuneConfig),
+    grid_step: int = opt.train_option(FinetuneConfig, "grid_step", doc=SamplerTrainConfig),
+    val_hypotheses: int = opt.val_hypotheses_option(FinetuneConfig),
+    val_frames: int | None = opt.val_frames_option(FinetuneConfig),
+    workers: int = opt.workers_option(FinetuneConfig),
+    resume: Path | None = opt.resume_option(),
+    out: Path = opt.out_option("runs/finetune"),
+    seed: int = opt.seed_option(FinetuneConfig),
+    threads: int = opt.threads_option(FinetuneConfig),
+    device: str = opt.train_device_option(FinetuneConfig),
+    max_minutes: float | None = opt.max_minutes_option(FinetuneConfig),
+    backend: str | None = opt.backend_option(),
 ) -> None:
     """Fine-tune sampler + neural solver (depth input) or depth net + sampler (+ solver) (--rgb) end to end.
 
@@ -142,7 +125,7 @@ def train_finetune_cmd(
     if sampler_weights is not None and not sampler_weights.exists():
         fail(f"--sampler-weights {sampler_weights}: no such file or folder")
     try:
-        cfg = config_of(FinetuneConfig, options, device=resolve_device(device))
+        cfg = opt.config_of(FinetuneConfig, options, device=resolve_device(device))
     except ValueError as e:
         fail(str(e))
     with user_errors(), no_empty_folder(out):

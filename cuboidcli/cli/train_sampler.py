@@ -11,6 +11,7 @@ from pathlib import Path
 
 import typer
 
+from cuboidcli.cli import options as opt
 from cuboidcli.cli.common import (
     check_training_paths,
     console,
@@ -18,24 +19,6 @@ from cuboidcli.cli.common import (
     no_empty_folder,
     resolve_device,
     user_errors,
-)
-from cuboidcli.cli.options import (
-    backend_option,
-    config_of,
-    epochs_option,
-    lr_option,
-    max_minutes_option,
-    out_option,
-    resume_option,
-    scenes_per_epoch_option,
-    seed_option,
-    threads_option,
-    train_device_option,
-    train_option,
-    trains,
-    val_frames_option,
-    val_hypotheses_option,
-    workers_option,
 )
 from cuboidcli.learn.sampler_train import SamplerTrainConfig
 from cuboidcli.nets.sampler import SamplerNetConfig
@@ -85,49 +68,43 @@ def _print_event(record: dict) -> None:
         )
 
 
-@trains(SamplerTrainConfig, SamplerNetConfig)
+@opt.trains(SamplerTrainConfig, SamplerNetConfig)
 def train_sampler_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
-    epochs: int = epochs_option(SamplerTrainConfig),
-    lr: float = lr_option(SamplerTrainConfig),
-    batch: int = train_option(SamplerTrainConfig, "batch"),
-    hypotheses: int = train_option(SamplerTrainConfig, "hypotheses"),
-    instances: int = train_option(SamplerTrainConfig, "instances"),
-    samples_k: int = train_option(SamplerTrainConfig, "samples_k"),
-    alpha: float = train_option(SamplerTrainConfig, "alpha", more="1000 when fine-tuning."),
-    scenes_per_epoch: int | None = scenes_per_epoch_option(SamplerTrainConfig),
-    grid_step: int = train_option(SamplerTrainConfig, "grid_step"),
-    width: int = train_option(SamplerNetConfig, "width", text="Channels of the network on the fitting grid."),
-    blocks: int = train_option(
-        SamplerNetConfig, "blocks", text="Residual blocks of the network on the fitting grid."
-    ),
-    upsample: int = train_option(
-        SamplerNetConfig,
-        "upsample",
-        text="Input resolution: the fitting grid times this power of two (8: the paper).",
-    ),
+    epochs: int = opt.epochs_option(SamplerTrainConfig),
+    lr: float = opt.lr_option(SamplerTrainConfig),
+    batch: int = opt.train_option(SamplerTrainConfig, "batch"),
+    hypotheses: int = opt.train_option(SamplerTrainConfig, "hypotheses"),
+    instances: int = opt.train_option(SamplerTrainConfig, "instances"),
+    samples_k: int = opt.train_option(SamplerTrainConfig, "samples_k"),
+    alpha: float = opt.train_option(SamplerTrainConfig, "alpha", more="1000 when fine-tuning."),
+    scenes_per_epoch: int | None = opt.scenes_per_epoch_option(SamplerTrainConfig),
+    grid_step: int = opt.train_option(SamplerTrainConfig, "grid_step"),
+    width: int = opt.train_option(SamplerNetConfig, "width"),
+    blocks: int = opt.train_option(SamplerNetConfig, "blocks"),
+    upsample: int = opt.train_option(SamplerNetConfig, "upsample"),
     prior: str = typer.Option(
         PRIOR, "--prior", help="'unexplained': maps on top of the sequential weights; 'none': plain."
     ),
-    kappa_corr: float = train_option(SamplerTrainConfig, "kappa_corr"),
-    tau_c_start_sq_m2: float = train_option(
+    kappa_corr: float = opt.train_option(SamplerTrainConfig, "kappa_corr"),
+    tau_c_start_sq_m2: float = opt.train_option(
         SamplerTrainConfig, "tau_c_start_sq_m2", "--tau-c-start", more="0.008: the test value throughout."
     ),
-    corr_mode: str = train_option(
+    corr_mode: str = opt.train_option(
         SamplerTrainConfig,
         "corr_mode",
         text="'positive': penalise positive correlations only; 'paper': the sum.",
     ),
-    val_hypotheses: int = val_hypotheses_option(SamplerTrainConfig),
-    val_frames: int | None = val_frames_option(SamplerTrainConfig),
-    workers: int = workers_option(SamplerTrainConfig),
-    resume: Path | None = resume_option("or an epoch_*.pt snapshot."),
-    out: Path = out_option("runs/sampler"),
-    seed: int = seed_option(SamplerTrainConfig),
-    threads: int = threads_option(SamplerTrainConfig),
-    device: str = train_device_option(SamplerTrainConfig),
-    max_minutes: float | None = max_minutes_option(SamplerTrainConfig),
-    backend: str | None = backend_option(),
+    val_hypotheses: int = opt.val_hypotheses_option(SamplerTrainConfig),
+    val_frames: int | None = opt.val_frames_option(SamplerTrainConfig),
+    workers: int = opt.workers_option(SamplerTrainConfig),
+    resume: Path | None = opt.resume_option("or an epoch_*.pt snapshot."),
+    out: Path = opt.out_option("runs/sampler"),
+    seed: int = opt.seed_option(SamplerTrainConfig),
+    threads: int = opt.threads_option(SamplerTrainConfig),
+    device: str = opt.train_device_option(SamplerTrainConfig),
+    max_minutes: float | None = opt.max_minutes_option(SamplerTrainConfig),
+    backend: str | None = opt.backend_option(),
 ) -> None:
     """Train the sampling-weight network on DATA; the best weights go to OUT/sampler_v2.pt.
 
@@ -149,8 +126,8 @@ def train_sampler_cmd(
     if blocks < 0:
         fail(f"--blocks must be at least 0 (got {blocks})")
     try:
-        cfg = config_of(SamplerTrainConfig, options, device=resolve_device(device))
-        net_cfg = config_of(SamplerNetConfig, options)
+        cfg = opt.config_of(SamplerTrainConfig, options, device=resolve_device(device))
+        net_cfg = opt.config_of(SamplerNetConfig, options)
     except ValueError as e:
         fail(str(e))
     with user_errors(), no_empty_folder(out):
