@@ -68,7 +68,6 @@ from torch import Tensor
 from cuboidcli.camera import Camera
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth, prepare_points
-from cuboidcli.geometry.fused import cuboid_values
 from cuboidcli.geometry.kernels import combine, oai_per_cuboid
 from cuboidcli.io.checkpoints import load_net
 from cuboidcli.io.dataset import Frame
@@ -308,6 +307,8 @@ def scene_loss(
     nets: Nets, scene: Scene, cfg: FinetuneConfig, fit: FitConfig, numerical, gen: torch.Generator
 ) -> tuple[Tensor, list[dict]]:
     """The mean instance loss of one scene (with gradients) and one record of floats per instance."""
+    from cuboidcli.geometry.fused import cuboid_values  # numba loads when training runs, not at start-up
+
     z = scene.z_points
     n = z.shape[0]
     if nets.depth is not None:
