@@ -79,6 +79,12 @@ TARGETS = (
         None,
         ("tests/fitting/test_scoring.py", "tests/geometry/test_fused.py", "tests/fitting/test_pipeline.py"),
     ),
+    Target(
+        "backend",
+        "cuboidcli/fitting/backend.py",
+        None,
+        ("tests/fitting/test_backend.py", "tests/fitting/test_scoring.py", "tests/fitting/test_pipeline.py"),
+    ),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.
