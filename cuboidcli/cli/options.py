@@ -43,7 +43,17 @@ DEVICE_DEFAULT = inspect.signature(Fitter).parameters["device"].default
 @cache
 def field_docs(cls: type = FitConfig) -> dict[str, str]:
     """The docstring of every field of dataclass ``cls`` (the string after the field in its class body),
-    dedented: FitConfig's by default, or a training config's."""
+    dedented: FitConfig's by default, or a training config's. Fields declared in a base class have the
+    base's docstring unless ``cls`` (or a nearer base) declares them again with one of its own."""
+    docs = {}
+    for klass in reversed(cls.__mro__):
+        if dataclasses.is_dataclass(klass):
+            docs.update(_own_field_docs(klass))
+    return docs
+
+
+def _own_field_docs(cls: type) -> dict[str, str]:
+    """The field docstrings written in ``cls``'s own class body."""
     tree = ast.parse(inspect.getsource(sys.modules[cls.__module__]))
     body = next(
         node for node in ast.walk(tree) if isinstance(node, ast.ClassDef) and node.name == cls.__name__

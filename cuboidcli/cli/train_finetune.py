@@ -20,7 +20,6 @@ from cuboidcli.cli.common import (
     user_errors,
 )
 from cuboidcli.learn.finetune import FinetuneConfig
-from cuboidcli.learn.sampler_train import SamplerTrainConfig
 
 
 def _print_event(record: dict) -> None:
@@ -83,13 +82,13 @@ def train_finetune_cmd(
     depth_lr: float | None = opt.train_option(
         FinetuneConfig, "depth_lr", text="Of the depth network.", show_default="--lr"
     ),
-    batch: int = opt.train_option(FinetuneConfig, "batch", doc=SamplerTrainConfig),
-    hypotheses: int = opt.train_option(FinetuneConfig, "hypotheses", doc=SamplerTrainConfig),
-    instances: int = opt.train_option(FinetuneConfig, "instances", doc=SamplerTrainConfig),
-    samples_k: int = opt.train_option(FinetuneConfig, "samples_k", doc=SamplerTrainConfig),
-    alpha: float = opt.train_option(FinetuneConfig, "alpha", doc=SamplerTrainConfig),
+    batch: int = opt.train_option(FinetuneConfig, "batch"),
+    hypotheses: int = opt.train_option(FinetuneConfig, "hypotheses"),
+    instances: int = opt.train_option(FinetuneConfig, "instances"),
+    samples_k: int = opt.train_option(FinetuneConfig, "samples_k"),
+    alpha: float = opt.train_option(FinetuneConfig, "alpha"),
     scenes_per_epoch: int | None = opt.scenes_per_epoch_option(FinetuneConfig),
-    grid_step: int = opt.train_option(FinetuneConfig, "grid_step", doc=SamplerTrainConfig),
+    grid_step: int = opt.train_option(FinetuneConfig, "grid_step"),
     val_hypotheses: int = opt.val_hypotheses_option(FinetuneConfig),
     val_frames: int | None = opt.val_frames_option(FinetuneConfig),
     workers: int = opt.workers_option(FinetuneConfig),

@@ -334,16 +334,7 @@ def train_depth(
         state = load_train_state(resume)
         cfg = resumed_config(state["train_config"], cfg, resume_overrides)
         net_cfg = DepthNetConfig.from_dict(state["config"])
-    run = RunConfig(
-        Path(out_dir),
-        seed=cfg.seed,
-        max_epochs=cfg.epochs,
-        max_minutes=cfg.max_minutes,
-        stop_within_epoch=True,
-        minutes_span_resumes=True,
-        log_every=cfg.log_every,
-        resume=None if resume is None else Path(resume),
-        threads=cfg.threads,
-        device=cfg.device,
+    run = RunConfig.of(
+        cfg, out_dir, resume, max_epochs=cfg.epochs, stop_within_epoch=True, minutes_span_resumes=True
     )
     return run_job(DepthJob(cfg, data, net_cfg), run, state, on_event)

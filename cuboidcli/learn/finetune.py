@@ -74,13 +74,12 @@ from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.sampler_data import dataset_splits, epoch_order
 from cuboidcli.learn.sampler_loss import (
-    CORR_MODES,
     correlation_loss,
     entropy_loss,
     inlier_masking_loss,
     set_log_prob,
 )
-from cuboidcli.learn.sampler_train import draw_generator, draw_states
+from cuboidcli.learn.sampler_train import SamplerSchedule, draw_generator, draw_states
 from cuboidcli.learn.trainer import (
     Run,
     RunConfig,
@@ -107,8 +106,10 @@ SOLVERS = ("neural", "numerical")
 
 
 @dataclass(frozen=True)
-class FinetuneConfig:
-    """Schedule of a fine-tuning run; defaults follow the paper's fine-tuning column except the rates."""
+class FinetuneConfig(SamplerSchedule):
+    """Schedule of a fine-tuning run; defaults follow the paper's fine-tuning column except the rates. The
+    fields it shares with sampler training are :class:`~cuboidcli.learn.sampler_train.SamplerSchedule`'s,
+    with the defaults redeclared here."""
 
     rgb: bool = False
     """Fine-tune from RGB: the depth network's prediction is the input (needs RGB frames)."""
@@ -123,33 +124,17 @@ class FinetuneConfig:
     """Of the neural solver; None = lr."""
     depth_lr: float | None = None
     """Of the depth network; None = lr."""
-    batch: int = 2
-    hypotheses: int = 32
-    instances: int = 8
-    samples_k: int = 2
     alpha: float = 1000.0
     grad_top: int = 4
     """The differentiable expectation E_h[l] runs over the hypotheses of the grad_top largest gains of a
     set (softmax renormalised over them); with alpha = 1000 the rest carry a negligible selection weight,
     and the occlusion-aware count with gradients is the most expensive part of a step."""
-    loss_clamp: float = 0.3
     kappa_corr: float = 0.0
-    corr_mode: str = "positive"
     kappa_entropy: float = 0.0
     kappa_im: float = 0.0
-    scenes_per_epoch: int | None = None
-    grid_step: int = 8
     seed: int = 0
     """Seeds the frame order and every draw."""
-    threads: int = 1
-    device: str = "cpu"
-    workers: int = 1
-    """Threads reading and preparing the training frames."""
     val_hypotheses: int = 512
-    val_frames: int | None = None
-    validate_initial: bool = True
-    max_minutes: float | None = None
-    """Stop after the epoch during which this much wall time (in this process) has passed."""
 
     def __post_init__(self) -> None:
         if self.solver not in SOLVERS:
@@ -159,23 +144,10 @@ class FinetuneConfig:
                 "fine-tuning with the numerical solver on depth input trains only the sampler: use "
                 "'cuboids train sampler', or --solver neural, or --rgb"
             )
-        if self.samples_k < 2:
-            raise ValueError("samples_k (K) must be at least 2: the baseline of K = 1 cancels the signal")
         if self.device != "cpu":
             raise ValueError(f"fine-tuning runs on the CPU in this version (got device {self.device!r})")
-        if self.corr_mode not in CORR_MODES:
-            raise ValueError(f"corr_mode must be one of {CORR_MODES}, got {self.corr_mode!r}")
-        for name in (
-            "epochs",
-            "batch",
-            "hypotheses",
-            "instances",
-            "grid_step",
-            "threads",
-            "val_hypotheses",
-            "grad_top",
-            "workers",
-        ):
+        super().__post_init__()
+        for name in ("val_hypotheses", "grad_top"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
         for name in ("lr", "solver_lr", "depth_lr"):
@@ -577,16 +549,6 @@ def finetune(
         state = read_state(resume, STATE_KIND, "fine-tuning", "OUT/last.pt")
         cfg = resumed_config(state["config"], cfg, RESUME_OVERRIDES)
         fit = FitConfig(**state["fit_config"])
-    run = RunConfig(
-        Path(out_dir),
-        seed=cfg.seed,
-        max_epochs=cfg.epochs,
-        max_minutes=cfg.max_minutes,
-        validate_initial=cfg.validate_initial,
-        resume=None if resume is None else Path(resume),
-        threads=cfg.threads,
-        device=cfg.device,
-        backend=backend,
-    )
+    run = RunConfig.of(cfg, out_dir, resume, max_epochs=cfg.epochs, backend=backend)
     weights = (sampler_weights, solver_weights, depth_weights)
     return run_job(FinetuneJob(cfg, Path(data), weights, fit), run, state, on_event)

@@ -92,8 +92,11 @@ def draw_seed(seed: int, rank: int = 0, epoch: int = 0) -> int:
 
 
 @dataclass(frozen=True)
-class SamplerTrainConfig:
-    """Schedule and bookkeeping of a sampler training run; defaults are the paper's NYU values except lr."""
+class SamplerSchedule:
+    """The settings a sampler training run (:class:`SamplerTrainConfig`) and a fine-tuning run
+    (:class:`cuboidcli.learn.finetune.FinetuneConfig`) share: the sampling-weight network's loss, the
+    frames, validation and the run. Defaults are the sampler trainer's; a subclass redeclares a field to
+    give it another default (and docstring)."""
 
     epochs: int = 25
     """N_e: epochs (also the length of the tau_c schedule)."""
@@ -121,8 +124,6 @@ class SamplerTrainConfig:
     kappa_im: float = 0.01
     loss_clamp: float = 0.3
     """Clamp of the baseline-subtracted task loss (see sampler_loss)."""
-    tau_c_start_sq_m2: float = 1.0
-    """tau_c at epoch 0, m^2 (the "1" of the paper's schedule)."""
     scenes_per_epoch: int | None = None
     """Scenes per epoch; None = every training frame once (the paper used 500 random scenes for SMH)."""
     grid_step: int = 8
@@ -140,8 +141,6 @@ class SamplerTrainConfig:
     """Validate on at most this many val frames (None = all)."""
     validate_initial: bool = True
     """Validate the untrained net before the first epoch (a reference point in the log)."""
-    keep_snapshots: int = 3
-    """epoch_XXX.pt files kept."""
     max_minutes: float | None = None
     """Stop after the epoch during which this much wall time (in this process) has passed."""
 
@@ -153,6 +152,17 @@ class SamplerTrainConfig:
         for name in ("epochs", "batch", "hypotheses", "instances", "grid_step", "threads", "workers"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
+
+
+@dataclass(frozen=True)
+class SamplerTrainConfig(SamplerSchedule):
+    """Schedule and bookkeeping of a sampler training run; defaults are the paper's NYU values except lr.
+    The fields it shares with fine-tuning are :class:`SamplerSchedule`'s."""
+
+    tau_c_start_sq_m2: float = 1.0
+    """tau_c at epoch 0, m^2 (the "1" of the paper's schedule)."""
+    keep_snapshots: int = 3
+    """epoch_XXX.pt files kept."""
 
     def loss_params(self, fit: FitConfig, epoch: int) -> LossParams:
         return LossParams(
@@ -432,18 +442,13 @@ def train_sampler(
         cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
         net_cfg = SamplerNetConfig.from_dict(state["config"])
         fit = FitConfig(**state["fit_config"])
-    run = RunConfig(
-        Path(out_dir),
-        seed=cfg.seed,
+    run = RunConfig.of(
+        cfg,
+        out_dir,
+        resume,
         max_epochs=cfg.epochs,
-        max_minutes=cfg.max_minutes,
-        keep_snapshots=cfg.keep_snapshots,
         snapshot_name="epoch_{epoch:03d}.pt",
-        validate_initial=cfg.validate_initial,
         stop_after_epochs=stop_after_epoch,
-        resume=None if resume is None else Path(resume),
-        threads=cfg.threads,
-        device=cfg.device,
         backend=backend,
     )
     return run_job(SamplerJob(cfg, data, net_cfg, fit), run, state, on_event)

@@ -240,15 +240,8 @@ def train_seed_sampler(
         state = read_state(resume, STATE_KIND, "seed-sampler training")
         cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
         fit = FitConfig(**state["fit_config"])
-    run = RunConfig(
-        Path(out_dir),
-        seed=cfg.seed,
-        max_epochs=cfg.epochs,
-        max_minutes=cfg.max_minutes,
-        stop_within_epoch=True,
-        log_every=None,
-        resume=None if resume is None else Path(resume),
-        threads=None,
+    run = RunConfig.of(
+        cfg, out_dir, resume, max_epochs=cfg.epochs, stop_within_epoch=True, log_every=None, threads=None
     )
     run_job(SeedJob(cfg, data, fit), run, state, on_event)
     return Path(out_dir) / WEIGHTS

@@ -292,20 +292,14 @@ def train_solver(
         cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
         net_cfg = SolverNetConfig.from_dict(state["config"])
         data_cfg = SyntheticConfig(**state["data_config"])
-    run = RunConfig(
-        Path(out_dir),
-        seed=cfg.seed,
+    run = RunConfig.of(
+        cfg,
+        out_dir,
+        resume,
         max_steps=cfg.iters,
-        max_minutes=cfg.max_minutes,
         minutes_span_resumes=True,
-        log_every=cfg.log_every,
-        val_every=cfg.val_every,
         save_every=cfg.ckpt_every,
-        keep_snapshots=cfg.keep_snapshots,
         snapshot_name="step_{step:07d}.pt",
-        resume=None if resume is None else Path(resume),
-        threads=cfg.threads,
-        device=cfg.device,
         backend=backend,
     )
     return run_job(SolverJob(cfg, net_cfg, data_cfg or SyntheticConfig()), run, state, on_event)

@@ -37,7 +37,7 @@ import re
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import ClassVar, TypeVar
 
@@ -111,6 +111,16 @@ class RunConfig:
                 raise ValueError(f"{name} must be at least 1, got {value}")
         if self.keep_snapshots < 0:
             raise ValueError(f"keep_snapshots must not be negative, got {self.keep_snapshots}")
+
+    @classmethod
+    def of(cls, cfg: object, out_dir: str | Path, resume: str | Path | None = None, **settings) -> RunConfig:
+        """The run of a trainer's config dataclass ``cfg``: every field of this class that ``cfg`` has a
+        field of the same name for (``seed``, ``max_minutes``, ``threads``, ``device``, ...) takes
+        ``cfg``'s value; ``settings`` set the others (``max_epochs=cfg.epochs``) or replace those."""
+        own = {f.name for f in fields(cls)} - {"out_dir", "resume"}
+        taken = {f.name: getattr(cfg, f.name) for f in fields(cfg) if f.name in own}
+        resume = None if resume is None else Path(resume)
+        return cls(Path(out_dir), resume=resume, **{**taken, **settings})
 
     @property
     def step_based(self) -> bool:
