@@ -263,25 +263,33 @@ class ShapeMetrics:
         with np.errstate(invalid="ignore", divide="ignore"):
             return np.where(self.visible_px > 0, self.supported_px / np.maximum(self.visible_px, 1), np.nan)
 
+    def _within(self, which: np.ndarray) -> int:
+        """Cuboids marked in ``which`` with every axis within :data:`SLAB_ALIGNED_DEG` of the room's axes."""
+        return int((which & (self.angle_manhattan_deg <= SLAB_ALIGNED_DEG)).sum())
+
+    def _measured(self, which: np.ndarray) -> int:
+        """Cuboids marked in ``which`` whose Manhattan angle is defined (the denominator of their share)."""
+        return int((which & np.isfinite(self.angle_manhattan_deg)).sum())
+
     @property
     def slabs_aligned(self) -> int:
         """Slabs with every axis within :data:`SLAB_ALIGNED_DEG` of the room's axes."""
-        return int((self.slab & (self.angle_manhattan_deg <= SLAB_ALIGNED_DEG)).sum())
+        return self._within(self.slab)
 
     @property
     def slabs_measured(self) -> int:
         """Slabs whose Manhattan angle is defined (the denominator of the aligned share)."""
-        return int((self.slab & np.isfinite(self.angle_manhattan_deg)).sum())
+        return self._measured(self.slab)
 
     @property
     def room_slabs_aligned(self) -> int:
         """Slabs of the room's shell with every axis within :data:`SLAB_ALIGNED_DEG` of the room's axes."""
-        return int((self.room & (self.angle_manhattan_deg <= SLAB_ALIGNED_DEG)).sum())
+        return self._within(self.room)
 
     @property
     def room_slabs_measured(self) -> int:
         """Slabs of the room's shell whose Manhattan angle is defined."""
-        return int((self.room & np.isfinite(self.angle_manhattan_deg)).sum())
+        return self._measured(self.room)
 
 
 def shape_metrics(

@@ -301,6 +301,8 @@ def align_winner(
 
     all_pts = pts.double().cpu().numpy()
     room = is_room_slab(all_pts, c0, a0, r0)
+    # the room's shell stands on the room's axes even where bent depth fits a tilted plane a little better
+    keep = ROOM_KEEP if room else ALIGN_KEEP
 
     def place(on: np.ndarray, rot: np.ndarray):
         cn, an = _refit_box(on, c0, a0, rot, config.a_min)
@@ -315,11 +317,12 @@ def align_winner(
         return kind, c3, a3, R2, v3, g3
 
     def candidate(kind: str, rot: np.ndarray):
-        best = grown(kind, *place(p, rot))
+        placed = place(p, rot)
+        best = grown(kind, *placed)  # grow_cuboid works on copies: ``placed`` stays as it is
         if room and best[5] < keep * gain:
             # a wall in bent far depth: the plane most of its points lie on; a doorway or a mirror that
             # the turned wall now covers: its edges trimmed
-            c2, a2, R2, v2, g2 = place(p, rot)
+            c2, a2, R2, v2, g2 = placed
             on = _plane_sweep(all_pts, state.cpu().numpy(), p, rot, _thin_of(rot, r0, a0))
             if on.shape[0] >= config.min_set:
                 alt = place(on, rot)
@@ -331,8 +334,6 @@ def align_winner(
                 best = other
         return best
 
-    # the room's shell stands on the room's axes even where bent depth fits a tilted plane a little better
-    keep = ROOM_KEEP if room else ALIGN_KEEP
     if alignment.mode == "manhattan" and alignment.axes is not None:
         best = candidate("manhattan", manhattan_rotation(r0, alignment.axes, thin_axis(a0)))
         slab = thin_axis(best[2][0].cpu().numpy()) >= 0
