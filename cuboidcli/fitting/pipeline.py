@@ -18,7 +18,7 @@ import torch
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.assign import OCCLUDED
+from cuboidcli.fitting.assign import OCCLUDED, assign_points
 from cuboidcli.fitting.backend import NumbaBackend, ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scoring import ScoreParams
@@ -420,17 +420,17 @@ def resolve_alignment(
 def grid_assignment(
     prep: PreparedPoints, state: np.ndarray, cuboids: list[Cuboid], config: FitConfig
 ) -> np.ndarray:
-    """Per fitting-grid cell label (Hs, Ws): cuboid index, -1 none, -2 occluded, -3 no depth."""
-    from cuboidcli.fitting.assign import assign_points
-
+    """Per fitting-grid cell label (Hs, Ws): cuboid index, -1 none, -2 occluded, -3 no depth; the values
+    come from the fit's backend (``config.backend`` on the points' device)."""
     labels = np.full(prep.grid_shape[0] * prep.grid_shape[1], INVALID, dtype=np.int32)
     lab = assign_points(
-        prep.points.cpu().numpy(),
+        prep.points,
         cuboids,
         config.tau_sq_m2,
         config.beta,
         config.tau_c,
         config.occlusion_aware,
+        backend_for(config.backend, prep.points.device),
     )
     if state is not None and len(cuboids):
         lab[state < 0] = OCCLUDED

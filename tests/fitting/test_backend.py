@@ -11,9 +11,12 @@ import numpy as np
 import pytest
 import torch
 
+from cuboidcli.camera import Camera
+from cuboidcli.cuboid import Cuboid
+from cuboidcli.fitting.assign import NONE, OCCLUDED, assign_points
 from cuboidcli.fitting.backend import NumbaBackend, TorchBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_points, prepare_points
+from cuboidcli.fitting.pipeline import fit_points, grid_assignment, prepare_points
 from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.fitting.winner import values_one
 from cuboidcli.sampling import SequentialSampler
@@ -145,6 +148,27 @@ def test_values_one_uses_the_backend_it_is_given():
     default = values_one(pts, c, a, R, sp)  # CPU points: the numba backend
     marked = values_one(pts, c, a, R, sp, Marked())
     np.testing.assert_allclose(marked.numpy(), default.numpy() + 1.0, atol=1e-12)
+
+
+def test_assignment_is_the_same_on_both_backends_and_follows_the_fits_backend(monkeypatch):
+    """Per-point labels come from the backend: numba and torch give the same inlier / occluded / none
+    labels, and the assignment after a fit uses the backend ``config.backend`` names."""
+    pts, c, a, R, _ = scene(n=2000, h=4, seed=5)
+    boxes = [Cuboid(c[k].numpy(), a[k].numpy(), R[k].numpy()) for k in range(4)]
+    labels = {b.name: assign_points(pts.numpy(), boxes, TAU, BETA, backend=b) for b in (NUMBA, TORCH)}
+    np.testing.assert_array_equal(labels["numba"], labels["torch"])
+    assert {NONE, OCCLUDED} <= set(labels["numba"].tolist()) and (labels["numba"] >= 0).sum() > 50
+    np.testing.assert_array_equal(assign_points(pts, boxes, TAU, BETA), labels["numba"])  # tensor in
+
+    used = []
+    monkeypatch.setattr(TorchBackend, "values", lambda self, *a: used.append("torch") or NUMBA.values(*a))
+    depth = np.full((48, 64), 2.0)
+    prep = prepare_points(depth, Camera(50.0, 50.0, 32.0, 24.0, 64, 48), 4)
+    box = Cuboid(np.array([0.0, 0.0, 2.05]), np.array([2.0, 2.0, 0.05]), np.eye(3))
+    for name, expected in (("numba", []), ("torch", ["torch"])):
+        used.clear()
+        grid = grid_assignment(prep, None, [box], FitConfig(backend=name))
+        assert used == expected and (grid == 0).all()
 
 
 @pytest.mark.parametrize("prescore_points", [0, 300])
