@@ -74,16 +74,15 @@ TARGETS = (
         ),
     ),
     Target(
-        "scoring",
-        "cuboidcli/fitting/scoring.py",
-        None,
-        ("tests/fitting/test_scoring.py", "tests/geometry/test_fused.py", "tests/fitting/test_pipeline.py"),
-    ),
-    Target(
         "backend",
         "cuboidcli/fitting/backend.py",
         None,
-        ("tests/fitting/test_backend.py", "tests/fitting/test_scoring.py", "tests/fitting/test_pipeline.py"),
+        (
+            "tests/fitting/test_backend.py",
+            "tests/fitting/test_scoring.py",
+            "tests/geometry/test_fused.py",
+            "tests/fitting/test_pipeline.py",
+        ),
     ),
 )
 

@@ -6,8 +6,7 @@ import numpy as np
 import torch
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.backend import ScoringBackend, backend_for
-from cuboidcli.fitting.scoring import ScoreParams
+from cuboidcli.fitting.backend import ScoreParams, ScoringBackend, backend_for
 
 NONE = -1
 OCCLUDED = -2

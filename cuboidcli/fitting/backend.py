@@ -4,31 +4,152 @@ loops, CPU only) or :class:`TorchBackend` (the torch reference kernels, any devi
 A backend computes the per-point values f_OAI(y, {h}) of cuboids, the inlier-count gains of hypotheses
 over the current state, the selection of the best hypothesis of a batch (:meth:`ScoringBackend.select_best`,
 exact or the approximate ``prescore_points`` path, the same algorithm on every backend) and the
-refinement of a winner (Adam on the mean squared occlusion-aware distance of its inliers,
-:mod:`cuboidcli.fitting.refine`). :func:`backend_for` picks one from a name ("auto", "numba", "torch",
+refinement of a winner. :func:`backend_for` picks one from a name ("auto", "numba", "torch",
 :data:`~cuboidcli.geometry.backends.BACKENDS`) and the points' device; the estimator
 (:func:`cuboidcli.fitting.pipeline.fit_points`) does so once and hands it to every step.
 
 Both backends compute in float64 and agree to about 1e-12 per value; the same seed draws the same random
 numbers on both, so they select the same cuboids up to rounding.
+
+**Values and gains** (:class:`ScoreParams`): the torch reference kernels (:func:`values_torch`,
+:func:`gains_torch`, any device, in chunks of hypotheses) and the fused numba loop (:func:`gains_cpu`, numpy
+on the CPU).
+
+**Refining the selected cuboid** on all the points it explains ("refine the winner";
+:func:`refine_cuboid`, :func:`refine_cuboid_fused`). A minimal set fixes a cuboid only up to the softness of
+the inlier function: a thin slab whose far face carries the points scores the same as one whose near face
+does (f_IO of the occluding near face stays positive while it is within sqrt(tau) of the point), yet its
+occlusion-aware distance is off by up to sqrt(tau) ~ 6 cm. Refinement minimises the mean squared
+occlusion-aware distance d_oa(h, y)^2 (Sec. 3.1) of the winner's inliers with Adam, in the spirit of the
+paper's optional EM refinement (appendix); the estimator keeps the refined cuboid only if its inlier-count
+gain does not drop.
 """
 
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from cuboidcli.fitting.scoring import ScoreParams, gains_cpu, gains_torch, values_torch
+from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.backends import resolve_backend
+from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 #: Exact selection: candidates nominated on a random eighth of the points whose best exact gain becomes
 #: the pruning threshold (backends that prune).
 NOMINATED = 16
 #: Margin (in inlier counts) below the nominated threshold, for rounding in the pruned pass.
 PRUNE_MARGIN = 1e-6
+
+
+
+@dataclass(frozen=True)
+class ScoreParams:
+    """The inlier function's parameters: tau (m^2), beta, the occlusion threshold tau_c (m^2), and whether
+    inliers are counted occlusion-aware (f_OAI) or plainly (f_I)."""
+
+    tau: float
+    beta: float
+    tau_c: float
+    occlusion_aware: bool = True
+
+
+def values_torch(points: Tensor, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:
+    """f_OAI(y, {h}) per hypothesis (H, N), or the plain soft inlier f_I(d^2) without OAI."""
+    if sp.occlusion_aware:
+        return K.oai_per_cuboid(points, centers, half_sizes, rotations, sp.tau, sp.beta, sp.tau_c)
+    local = K.to_local(points, centers, rotations)
+    return K.inlier_fn(K.cuboid_sq_distance(local, half_sizes), sp.tau, sp.beta)
+
+
+def gains_torch(
+    points: Tensor, centers, half_sizes, rotations, state: Tensor, sp: ScoreParams, chunk: int = 64
+) -> Tensor:
+    """Reference gains (H,): sum over points of combine(value, state) - state."""
+    out = []
+    for s in range(0, centers.shape[0], chunk):
+        v = values_torch(
+            points, centers[s : s + chunk], half_sizes[s : s + chunk], rotations[s : s + chunk], sp
+        )
+        out.append((K.combine(v, state[None]) - state[None]).sum(1))
+    return torch.cat(out) if out else torch.zeros(0, dtype=points.dtype, device=points.device)
+
+
+def gains_cpu(
+    points: np.ndarray,
+    centers,
+    half_sizes,
+    rotations,
+    state: np.ndarray,
+    sp: ScoreParams,
+    prune_below: float = -np.inf,
+) -> np.ndarray:
+    """Gains (H,) float64 with the fused numba loop, numpy arrays in; ``prune_below`` as in
+    :func:`~cuboidcli.geometry.fused.score_gains`."""
+    from cuboidcli.geometry.fused import score_gains
+
+    return score_gains(
+        points,
+        centers,
+        half_sizes,
+        rotations,
+        state,
+        sp.tau,
+        sp.beta,
+        sp.tau_c,
+        sp.occlusion_aware,
+        prune_below,
+    )
+
+
+def refine_cuboid_fused(
+    points: np.ndarray, center, half, rotation, a_min: float, a_max: float, iters: int = 25, lr: float = 0.003
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """CPU fast path of :func:`refine_cuboid` (numba, analytic gradient); numpy in, numpy out."""
+    from cuboidcli.solvers.adam_fused import refine_adam
+
+    r = matrix_to_axis_angle(torch.as_tensor(np.asarray(rotation, dtype=np.float64))).numpy()
+    init = np.concatenate([np.asarray(center, np.float64), r, np.asarray(half, np.float64)])
+    best = refine_adam(np.ascontiguousarray(points, np.float64), init, a_min, a_max, lr, iters)
+    R = axis_angle_to_matrix(torch.from_numpy(best[3:6].copy())).numpy()
+    return best[:3], best[6:], R
+
+
+def refine_cuboid(
+    points: Tensor,
+    center: Tensor,
+    half: Tensor,
+    rotation: Tensor,
+    a_min: float,
+    a_max: float,
+    iters: int = 25,
+    lr: float = 0.003,
+) -> tuple[Tensor, Tensor, Tensor]:
+    """points (N, 3) inliers; center (3,), half (3,), rotation (3, 3) -> refined (center, half, R)."""
+    pts = points.double()
+    c = center.double().clone().requires_grad_(True)
+    r = matrix_to_axis_angle(rotation.double()).clone().requires_grad_(True)
+    a = half.double().clone().requires_grad_(True)
+    opt = torch.optim.Adam([c, r, a], lr=lr)
+    best = (float("inf"), center.double(), half.double(), rotation.double())
+    with torch.enable_grad():
+        for it in range(iters + 1):
+            R = axis_angle_to_matrix(r)[None]
+            loss = K.oa_sq_distance(pts, c[None], a[None], R).mean()
+            if loss.item() < best[0]:
+                best = (loss.item(), c.detach().clone(), a.detach().clone(), R[0].detach().clone())
+            if it == iters:
+                break
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            with torch.no_grad():
+                a.clamp_(a_min, a_max)
+    _, cb, ab, Rb = best
+    return cb.to(center.dtype), ab.to(half.dtype), Rb.to(rotation.dtype)
 
 
 class ScoringBackend(ABC):
@@ -135,8 +256,6 @@ class NumbaBackend(ScoringBackend):
         return gains_cpu(*arrays, sp, prune_below=prune_below)
 
     def refine(self, points, center, half, rotation, a_min: float, a_max: float):
-        from cuboidcli.fitting.refine import refine_cuboid_fused
-
         out = refine_cuboid_fused(*(x.numpy() for x in (points, center, half, rotation)), a_min, a_max)
         return tuple(torch.from_numpy(np.asarray(x)) for x in out)
 
@@ -170,8 +289,6 @@ class TorchBackend(ScoringBackend):
         return gains_torch(*tensors, sp, chunk=self.chunk).cpu().numpy()
 
     def refine(self, points, center, half, rotation, a_min: float, a_max: float):
-        from cuboidcli.fitting.refine import refine_cuboid
-
         return refine_cuboid(points, center, half, rotation, a_min, a_max)
 
 

@@ -19,9 +19,8 @@ import torch
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import OCCLUDED, assign_points
-from cuboidcli.fitting.backend import NumbaBackend, ScoringBackend, backend_for
+from cuboidcli.fitting.backend import NumbaBackend, ScoreParams, ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.fitting.winner import Alignment, align_winner, refine_winner, values_one
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
 from cuboidcli.geometry.kernels import combine

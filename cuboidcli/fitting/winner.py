@@ -16,9 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-from cuboidcli.fitting.backend import ScoringBackend, backend_for
+from cuboidcli.fitting.backend import ScoreParams, ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry.gravity import level_frame, manhattan_rotation, upright_rotation
 from cuboidcli.geometry.kernels import combine
 

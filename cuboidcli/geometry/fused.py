@@ -9,7 +9,7 @@ box. Pairs whose squared distance exceeds ``tau * (1 + 40 / beta)`` and which ar
 instead of f_I < 1e-17. Tested against the torch reference kernels in :mod:`cuboidcli.geometry.kernels`.
 
 The numerical solver's fused loops (:mod:`cuboidcli.solvers.adam_fused`) share :func:`camera_local` and
-:func:`occluding_sides`; the scorer (:mod:`cuboidcli.fitting.scoring`) and assignment call the loops here.
+:func:`occluding_sides`; the scorer (:mod:`cuboidcli.fitting.backend`) and assignment call the loops here.
 """
 
 from __future__ import annotations

@@ -27,9 +27,9 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from cuboidcli.fitting.backend import ScoreParams, gains_cpu
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import PreparedPoints
-from cuboidcli.fitting.scoring import ScoreParams, gains_cpu
 from cuboidcli.fitting.winner import values_one
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, prepare_scenes

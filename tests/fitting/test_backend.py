@@ -14,10 +14,9 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import NONE, OCCLUDED, assign_points
-from cuboidcli.fitting.backend import NumbaBackend, TorchBackend, backend_for
+from cuboidcli.fitting.backend import NumbaBackend, ScoreParams, TorchBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_points, grid_assignment, prepare_points
-from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.fitting.winner import values_one
 from cuboidcli.sampling import SequentialSampler
 from cuboidcli.solvers.base import SizeBounds

@@ -1,4 +1,4 @@
-"""Hypothesis selection (fitting/scoring.py): what each path returns, beyond the winner."""
+"""Hypothesis selection (fitting/backend.py select_best): what each path returns, beyond the winner."""
 
 from __future__ import annotations
 
@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 import torch
 
-from cuboidcli.fitting.backend import NumbaBackend
-from cuboidcli.fitting.scoring import ScoreParams, gains_torch
+from cuboidcli.fitting.backend import NumbaBackend, ScoreParams, gains_torch
 from tests.geometry.test_fused import BETA, TAU, scene
 
 SP = ScoreParams(TAU, BETA, 2 * TAU)

@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 import torch
 
+from cuboidcli.fitting.backend import ScoreParams
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.fitting.winner import (
     Alignment,
     _refit_box,

@@ -1,0 +1,128 @@
+"""Follow ``cuboids fit`` as it runs: the package files whose functions execute, and the calls that cross
+from one unit of the package to another.
+
+Runs the command in this process under :func:`sys.setprofile` and records every Python call into a
+``cuboidcli`` file (module bodies run by ``import`` are left out: the figure is about the functions control
+passes through, not about what gets imported). A call is attributed to the nearest ``cuboidcli`` frame
+above it, so a network's ``forward`` reached through ``torch.nn.Module.__call__`` counts as a call from the
+code that called the network. Units are the first component below ``cuboidcli`` (``fitting``, ``cli``,
+``weights``), as in ``tests/test_layers.py``; a crossing is a distinct (caller unit -> callee unit) pair,
+and it is upward where the callee's layer is above the caller's in that test's table (units the table does
+not know, in older checkouts, are reported as such). An upward call is a callback when the caller's file
+imports nothing of the callee's unit (a function handed down, like the command's progress printer), and an
+upward dependency when it does.
+
+    python scripts/trace_fit_path.py DEPTH.png [fit options]                 # this checkout
+    python scripts/trace_fit_path.py --package ../old DEPTH.png --preset nyu  # another checkout's code
+    python scripts/trace_fit_path.py --list DEPTH.png --preset nyu            # and the files, one a line
+
+The fit's outputs go to a temporary folder. Profiling slows the fit down; its timings mean nothing.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import importlib
+import sys
+import tempfile
+from collections import Counter
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def unit_of(module_file: str, package: Path) -> str:
+    """The unit of a file below ``package`` (``fitting/pipeline.py`` -> ``fitting``; ``api.py`` -> ``api``;
+    ``__init__.py`` -> ``cuboidcli``)."""
+    rel = Path(module_file).resolve().relative_to(package)
+    first = rel.parts[0]
+    if len(rel.parts) == 1:
+        return "cuboidcli" if first == "__init__.py" else rel.stem
+    return first
+
+
+def imported_units(module_file: str, package: Path) -> set[str]:
+    """The package units a file imports anywhere in it (module level or in functions)."""
+    tree = ast.parse(Path(module_file).read_text(encoding="utf-8"))
+    names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
+    names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and not n.level]
+    units = {name.split(".")[1] for name in names if name.startswith("cuboidcli.")}
+    return units | ({"cuboidcli"} if "cuboidcli" in names else set())
+
+
+def trace(package: Path, argv: list[str]) -> tuple[Counter, Counter, set]:
+    """Run ``cuboids fit ARGV`` from ``package``'s checkout: (calls per file, calls per unit crossing, the
+    crossings whose caller file imports the callee's unit)."""
+    sys.path.insert(0, str(package.parent))
+    prefix = str(package) + "/"
+    files: Counter = Counter()
+    crossings: Counter = Counter()
+    by_import: set = set()
+
+    def profile(frame, event, arg):
+        if event != "call":
+            return
+        path = frame.f_code.co_filename
+        if not path.startswith(prefix) or frame.f_code.co_name == "<module>":
+            return
+        files[path] += 1
+        caller = frame.f_back
+        while caller is not None and not caller.f_code.co_filename.startswith(prefix):
+            caller = caller.f_back
+        if caller is not None and caller.f_code.co_name != "<module>":
+            a, b = unit_of(caller.f_code.co_filename, package), unit_of(path, package)
+            if a != b:
+                crossings[(a, b)] += 1
+                if b in imported_units(caller.f_code.co_filename, package):
+                    by_import.add((a, b))
+
+    main = importlib.import_module("cuboidcli.cli.main")
+    assert Path(main.__file__).resolve().is_relative_to(package), f"imported {main.__file__}, not {package}"
+    with tempfile.TemporaryDirectory() as out:
+        sys.argv = ["cuboids", "fit", *argv, "-o", str(Path(out) / "fit.json")]
+        sys.setprofile(profile)
+        try:
+            main.run()
+        except SystemExit as e:
+            if e.code not in (0, None):
+                raise
+        finally:
+            sys.setprofile(None)
+    return files, crossings, by_import
+
+
+def layer_ranks() -> dict[str, int]:
+    """Unit -> rank, from the table of ``tests/test_layers.py`` in this checkout."""
+    sys.path.insert(0, str(REPO))
+    from tests.test_layers import LAYERS
+
+    return {unit: rank for rank, units in enumerate(LAYERS) for unit in units}
+
+
+def main(argv: list[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--package", type=Path, default=REPO, help="the checkout whose code runs")
+    parser.add_argument("--list", action="store_true", help="print the files and crossings too")
+    args, fit_args = parser.parse_known_args(argv)
+    ranks = layer_ranks()
+    package = args.package.resolve() / "cuboidcli"
+    files, crossings, by_import = trace(package, fit_args)
+    upward = [(a, b) for a, b in crossings if a in ranks and b in ranks and ranks[b] > ranks[a]]
+    callbacks = [pair for pair in upward if pair not in by_import]
+    unknown = sorted({u for pair in crossings for u in pair if u not in ranks})
+    if args.list:
+        for path, calls in sorted(files.items()):
+            print(f"{calls:8d}  {Path(path).relative_to(package)}")
+        for (a, b), calls in sorted(crossings.items()):
+            mark = ("  upward callback" if (a, b) in callbacks else "  UPWARD") if (a, b) in upward else ""
+            print(f"{calls:8d}  {a} -> {b}{mark}")
+    print(
+        f"{len(files)} files run, {len(crossings)} unit crossings ({len(upward) - len(callbacks)} upward "
+        f"dependencies, {len(callbacks)} upward callbacks)"
+        + (f"; units not in the layer table: {', '.join(unknown)}" if unknown else "")
+    )
+
+
+if __name__ == "__main__":
+    main()
