@@ -12,9 +12,9 @@ not know, in older checkouts, are reported as such). An upward call is a callbac
 imports nothing of the callee's unit (a function handed down, like the command's progress printer), and an
 upward dependency when it does.
 
-    python scripts/trace_fit_path.py DEPTH.png [fit options]                 # this checkout
-    python scripts/trace_fit_path.py --package ../old DEPTH.png --preset nyu  # another checkout's code
-    python scripts/trace_fit_path.py --list DEPTH.png --preset nyu            # and the files, one a line
+    python scripts/trace_fit_path.py --depth D.png --preset nyu [fit options]     # this checkout
+    python scripts/trace_fit_path.py --package ../old --depth D.png --preset nyu  # another checkout's code
+    python scripts/trace_fit_path.py --list --depth D.png --preset nyu  # and the files, as first reached
 
 The fit's outputs go to a temporary folder. Profiling slows the fit down; its timings mean nothing.
 """
@@ -112,7 +112,7 @@ def main(argv: list[str] | None = None) -> None:
     callbacks = [pair for pair in upward if pair not in by_import]
     unknown = sorted({u for pair in crossings for u in pair if u not in ranks})
     if args.list:
-        for path, calls in sorted(files.items()):
+        for path, calls in files.items():  # in the order control first reaches them
             print(f"{calls:8d}  {Path(path).relative_to(package)}")
         for (a, b), calls in sorted(crossings.items()):
             mark = ("  upward callback" if (a, b) in callbacks else "  UPWARD") if (a, b) in upward else ""
