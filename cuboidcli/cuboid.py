@@ -73,16 +73,18 @@ class Cuboid:
     def volume(self) -> float:
         return float(8.0 * np.prod(self.half_size))
 
-    def to_json(self, index: int) -> dict:
-        d = {
-            "id": index,
+    def parameters_json(self) -> dict:
+        """The box's parameters, JSON-safe: centre, half-sizes, rotation, quaternion (wxyz), inlier gain."""
+        return {
             "center": [float(v) for v in self.center],
             "half_size": [float(v) for v in self.half_size],
             "rotation": [[float(v) for v in row] for row in self.rotation],
             "quat_wxyz": [float(v) for v in self.quat_wxyz],
             "inlier_gain": None if self.inlier_gain is None else float(self.inlier_gain),
-            "color": list(palette_color(index)),
         }
+
+    def to_json(self, index: int) -> dict:
+        d = {"id": index, **self.parameters_json(), "color": list(palette_color(index))}
         d.update(self.extras)
         return d
 

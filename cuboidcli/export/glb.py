@@ -62,11 +62,7 @@ def node_extras(cuboid: Cuboid, index: int) -> dict:
     return {
         "id": index,
         "frame": "opencv camera (x right, y down, z forward), metres; the node transform is glTF (y up)",
-        "center": [float(v) for v in cuboid.center],
-        "half_size": [float(v) for v in cuboid.half_size],
-        "rotation": [[float(v) for v in row] for row in cuboid.rotation],
-        "quat_wxyz": [float(v) for v in cuboid.quat_wxyz],
-        "inlier_gain": None if cuboid.inlier_gain is None else float(cuboid.inlier_gain),
+        **cuboid.parameters_json(),
         "color": list(palette_color(index)),
     }
 

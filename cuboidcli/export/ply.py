@@ -62,6 +62,28 @@ def assign_labels(points: np.ndarray, cuboids: list[Cuboid], settings: dict | No
     return np.asarray(assign_points(np.asarray(points, dtype=np.float64), cuboids, **kw), dtype=np.int32)
 
 
+#: The vertex element's properties, in the order of :func:`_vertex_records`' fields.
+_VERTEX_PROPS = [
+    "property float x",
+    "property float y",
+    "property float z",
+    "property uchar red",
+    "property uchar green",
+    "property uchar blue",
+]
+
+
+def _vertex_records(points: np.ndarray, colors: np.ndarray) -> np.ndarray:
+    """Binary vertex records (N,) for points (N, 3) m and colours (N, 3) uint8: float32 xyz, uchar RGB."""
+    rec = np.empty(
+        len(points),
+        dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")],
+    )
+    rec["x"], rec["y"], rec["z"] = points[:, 0], points[:, 1], points[:, 2]
+    rec["red"], rec["green"], rec["blue"] = colors[:, 0], colors[:, 1], colors[:, 2]
+    return rec
+
+
 def _header(comments: list[str], elements: list[tuple[str, int, list[str]]]) -> bytes:
     lines = ["ply", "format binary_little_endian 1.0", *comments]
     for name, count, props in elements:
@@ -77,22 +99,8 @@ def write_point_ply(path: str | os.PathLike, points: np.ndarray, colors: np.ndar
     colors = np.asarray(colors, dtype=np.uint8).reshape(-1, 3)
     if len(points) != len(colors):
         raise ValueError(f"{len(points)} points but {len(colors)} colours")
-    rec = np.empty(
-        len(points),
-        dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")],
-    )
-    rec["x"], rec["y"], rec["z"] = points[:, 0], points[:, 1], points[:, 2]
-    rec["red"], rec["green"], rec["blue"] = colors[:, 0], colors[:, 1], colors[:, 2]
-    props = [
-        "property float x",
-        "property float y",
-        "property float z",
-        "property uchar red",
-        "property uchar green",
-        "property uchar blue",
-    ]
-    head = _header([_FRAME_COMMENT], [("vertex", len(points), props)])
-    return atomic_write(path, lambda p: p.write_bytes(head + rec.tobytes()))
+    head = _header([_FRAME_COMMENT], [("vertex", len(points), _VERTEX_PROPS)])
+    return atomic_write(path, lambda p: p.write_bytes(head + _vertex_records(points, colors).tobytes()))
 
 
 def cuboid_mesh_arrays(cuboids: list[Cuboid]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -114,30 +122,14 @@ def cuboid_mesh_arrays(cuboids: list[Cuboid]) -> tuple[np.ndarray, np.ndarray, n
 def write_cuboid_ply(path: str | os.PathLike, cuboids: list[Cuboid]) -> Path:
     """Write the cuboids as one triangle mesh (24 vertices, 12 triangles each) with vertex colours."""
     verts, faces, cols = cuboid_mesh_arrays(cuboids)
-    vrec = np.empty(
-        len(verts),
-        dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("red", "u1"), ("green", "u1"), ("blue", "u1")],
-    )
-    vrec["x"], vrec["y"], vrec["z"] = verts[:, 0], verts[:, 1], verts[:, 2]
-    vrec["red"], vrec["green"], vrec["blue"] = cols[:, 0], cols[:, 1], cols[:, 2]
+    vrec = _vertex_records(verts, cols)
     frec = np.empty(len(faces), dtype=[("n", "u1"), ("idx", "<i4", (3,))])
     frec["n"] = 3
     frec["idx"] = faces
     head = _header(
         [_FRAME_COMMENT, f"comment {len(cuboids)} cuboids, 24 vertices and 12 faces each, in palette order"],
         [
-            (
-                "vertex",
-                len(verts),
-                [
-                    "property float x",
-                    "property float y",
-                    "property float z",
-                    "property uchar red",
-                    "property uchar green",
-                    "property uchar blue",
-                ],
-            ),
+            ("vertex", len(verts), _VERTEX_PROPS),
             ("face", len(faces), ["property list uchar int vertex_indices"]),
         ],
     )

@@ -160,13 +160,20 @@ def leaky_constants(tau: float, beta: float, tau_c: float) -> tuple[float, float
 
 
 @njit(cache=True, inline="always")
+def to_local(x, y, z, R):
+    """An offset (x, y, z) from a cuboid's centre in the cuboid's frame: R^T (x, y, z)."""
+    return (
+        R[0, 0] * x + R[1, 0] * y + R[2, 0] * z,
+        R[0, 1] * x + R[1, 1] * y + R[2, 1] * z,
+        R[0, 2] * x + R[1, 2] * y + R[2, 2] * z,
+    )
+
+
+@njit(cache=True, inline="always")
 def camera_local(t0, t1, t2, R):
     """The camera centre (the origin) in a cuboid's frame: -R^T t."""
-    return (
-        -(R[0, 0] * t0 + R[1, 0] * t1 + R[2, 0] * t2),
-        -(R[0, 1] * t0 + R[1, 1] * t1 + R[2, 1] * t2),
-        -(R[0, 2] * t0 + R[1, 2] * t1 + R[2, 2] * t2),
-    )
+    l0, l1, l2 = to_local(t0, t1, t2, R)
+    return -l0, -l1, -l2
 
 
 @njit(cache=True)
@@ -242,9 +249,7 @@ def _gains(
                 v = uv[i, 1]
                 if u < u_lo or u > u_hi or v < v_lo or v > v_hi:
                     continue  # value 0 and combine(0, s) = s: no contribution
-            l0 = R[0, 0] * x + R[1, 0] * y + R[2, 0] * z
-            l1 = R[0, 1] * x + R[1, 1] * y + R[2, 1] * z
-            l2 = R[0, 2] * x + R[1, 2] * y + R[2, 2] * z
+            l0, l1, l2 = to_local(x, y, z, R)
             v = _pair_value(
                 l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, oai
             )
@@ -320,9 +325,7 @@ def _values(points, centers, half, rot, beta, inv_tau, tau_c, slope, offset, cut
             x = points[i, 0] - t0
             y = points[i, 1] - t1
             z = points[i, 2] - t2
-            l0 = R[0, 0] * x + R[1, 0] * y + R[2, 0] * z
-            l1 = R[0, 1] * x + R[1, 1] * y + R[2, 1] * z
-            l2 = R[0, 2] * x + R[1, 2] * y + R[2, 2] * z
+            l0, l1, l2 = to_local(x, y, z, R)
             out[h, i] = _pair_value(
                 l0,
                 l1,

@@ -29,6 +29,7 @@ import numpy as np
 from cuboidcli.camera import Camera
 from cuboidcli.io.atomic import atomic_write_json
 from cuboidcli.io.depth import InputError, _imread_unchanged, read_depth, read_rgb
+from cuboidcli.io.jsonfile import read_json
 
 DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
 RGB_SUFFIXES = (".png", ".jpg", ".jpeg")
@@ -99,10 +100,7 @@ def _load_cameras(root: Path) -> tuple[dict[str, dict], dict | None]:
     for fname in ("cameras.json", "camera.json"):
         p = root / fname
         if p.is_file():
-            try:
-                d = json.loads(p.read_text(encoding="utf-8"))
-            except json.JSONDecodeError as e:
-                raise InputError(f"{p} is not valid JSON ({e.msg} at line {e.lineno})") from e
+            d = read_json(p, InputError, "{path} is not valid JSON ({e.msg} at line {e.lineno})")
             if "fx" in d:
                 shared = d
             else:

@@ -7,7 +7,6 @@ missing. Every problem raises :class:`InputError` with a one-line message.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import warnings
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from cuboidcli.camera import PRESETS, Camera, valid_depth
+from cuboidcli.io.jsonfile import read_json
 
 
 class InputError(ValueError):
@@ -176,12 +176,12 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
         )
     path = Path(spec)
     if spec.lower().endswith(".json") or path.is_file():
-        if not path.is_file():
-            raise InputError(f"intrinsics file not found: {path}")
-        try:
-            d = json.loads(path.read_text(encoding="utf-8"))
-        except json.JSONDecodeError as e:
-            raise InputError(f"intrinsics file {path} is not valid JSON ({e.msg} at line {e.lineno})") from e
+        d = read_json(
+            path,
+            InputError,
+            "intrinsics file {path} is not valid JSON ({e.msg} at line {e.lineno})",
+            missing="intrinsics file not found: {path}",
+        )
         if isinstance(d, dict) and "fx" not in d:
             entries = {k: v for k, v in d.items() if isinstance(v, dict) and "fx" in v}
             if frame is not None:

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from dataclasses import dataclass, field
@@ -14,6 +13,7 @@ from cuboidcli import __version__
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.io.atomic import atomic_write_json
+from cuboidcli.io.jsonfile import read_json
 
 SCHEMA = "cuboids/1"
 
@@ -135,11 +135,11 @@ def write_result(path: str | os.PathLike, result: FitResult) -> Path:
 
 
 def read_result(path: str | os.PathLike) -> FitResult:
-    path = Path(path)
-    if not path.is_file():
-        raise FileNotFoundError(f"result file not found: {path}")
-    try:
-        d = json.loads(path.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as e:
-        raise ValueError(f"{path} is not valid JSON: {e}") from e
+    d = read_json(
+        Path(path),
+        ValueError,
+        "{path} is not valid JSON: {e}",
+        missing="result file not found: {path}",
+        missing_error=FileNotFoundError,
+    )
     return FitResult.from_json(d)

@@ -14,7 +14,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from cuboidcli.geometry.fused import camera_local, occluding_sides
+from cuboidcli.geometry.fused import camera_local, occluding_sides, to_local
 
 
 @njit(cache=True, inline="always")
@@ -120,9 +120,7 @@ def _objective_and_grad(pts, p, R, dR, grad):
         x0 = pts[i, 0] - t0
         x1 = pts[i, 1] - t1
         x2 = pts[i, 2] - t2
-        l0 = R[0, 0] * x0 + R[1, 0] * x1 + R[2, 0] * x2
-        l1 = R[0, 1] * x0 + R[1, 1] * x1 + R[2, 1] * x2
-        l2 = R[0, 2] * x0 + R[1, 2] * x1 + R[2, 2] * x2
+        l0, l1, l2 = to_local(x0, x1, x2, R)
         q0, s0 = _axis_grad(l0, a0)
         q1, s1 = _axis_grad(l1, a1)
         q2, s2 = _axis_grad(l2, a2)

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -66,16 +67,18 @@ def pipe(rng: np.random.Generator, height: float) -> MeshAssembly:
     return a
 
 
-def ball(rng: np.random.Generator) -> MeshAssembly:
+def ball(rng: np.random.Generator, radius=(0.1, 0.3), lat: int = 8, lon: int = 14) -> MeshAssembly:
+    """A ball lying on the surface: radius drawn from the range ``radius``, ``lat`` x ``lon`` segments."""
     a = MeshAssembly("ball")
-    r = rng.uniform(0.1, 0.3)
-    a.add(sphere_mesh(r, lat=8, lon=14), MAIN, (0.0, 0.0, r))
+    r = rng.uniform(*radius)
+    a.add(sphere_mesh(r, lat=lat, lon=lon), MAIN, (0.0, 0.0, r))
     return a
 
 
-def cone(rng: np.random.Generator) -> MeshAssembly:
+def cone(rng: np.random.Generator, radius=(0.1, 0.25), height=(0.3, 0.7), segments: int = 16) -> MeshAssembly:
+    """A cone standing on its base: base radius and height drawn from the ranges ``radius`` and ``height``."""
     a = MeshAssembly("cone")
-    a.add(frustum_mesh(rng.uniform(0.1, 0.25), 0.0, rng.uniform(0.3, 0.7), segments=16), MAIN)
+    a.add(frustum_mesh(rng.uniform(*radius), 0.0, rng.uniform(*height), segments=segments), MAIN)
     return a
 
 
@@ -129,19 +132,6 @@ FLOOR_CLUTTER: dict[str, tuple[Callable[[np.random.Generator], MeshAssembly], fl
 SMALL_CLUTTER: dict[str, tuple[Callable[[np.random.Generator], MeshAssembly], float]] = {
     "vase": (vase, 1.0),
     "lamp": (table_lamp, 0.5),
-    "ball": (lambda rng: _small_ball(rng), 0.4),
-    "cone": (lambda rng: _small_cone(rng), 0.3),
+    "ball": (partial(ball, radius=(0.04, 0.1), lat=7, lon=12), 0.4),
+    "cone": (partial(cone, radius=(0.04, 0.08), height=(0.1, 0.25), segments=12), 0.3),
 }
-
-
-def _small_ball(rng: np.random.Generator) -> MeshAssembly:
-    a = MeshAssembly("ball")
-    r = rng.uniform(0.04, 0.1)
-    a.add(sphere_mesh(r, lat=7, lon=12), MAIN, (0.0, 0.0, r))
-    return a
-
-
-def _small_cone(rng: np.random.Generator) -> MeshAssembly:
-    a = MeshAssembly("cone")
-    a.add(frustum_mesh(rng.uniform(0.04, 0.08), 0.0, rng.uniform(0.1, 0.25), segments=12), MAIN)
-    return a

@@ -70,6 +70,23 @@ def _legs(a: Assembly, hx: float, hy: float, top_z: float, leg: float, inset: fl
             )
 
 
+def _slab_on_legs(
+    a: Assembly,
+    name: str,
+    hx: float,
+    hy: float,
+    top: float,
+    t: float,
+    leg: float,
+    inset: float,
+    rng: np.random.Generator,
+) -> None:
+    """A slab ``name`` (2 hx x 2 hy, ``t`` thick, its top at ``top``) on four legs of width ``leg``, set in
+    ``inset`` from the corners; the legs' role (main or metal) is drawn from ``rng``."""
+    a.box(name, [-hx, -hy, top - t], [hx, hy, top])
+    _legs(a, hx, hy, top - t, leg, inset, rng.choice([MAIN, METAL]))
+
+
 def table(rng: np.random.Generator) -> Assembly:
     """Dining or coffee table: a top on four legs."""
     a = Assembly("table")
@@ -79,8 +96,7 @@ def table(rng: np.random.Generator) -> Assembly:
     height = rng.uniform(0.38, 0.5) if coffee else rng.uniform(0.70, 0.78)
     t = rng.uniform(0.025, 0.05)
     hx, hy = length / 2, width / 2
-    a.box("top", [-hx, -hy, height - t], [hx, hy, height])
-    _legs(a, hx, hy, height - t, rng.uniform(0.04, 0.08), rng.uniform(0.0, 0.08), rng.choice([MAIN, METAL]))
+    _slab_on_legs(a, "top", hx, hy, height, t, rng.uniform(0.04, 0.08), rng.uniform(0.0, 0.08), rng)
     a.surface(height, [-hx, -hy], [hx, hy])
     return a
 
@@ -208,8 +224,7 @@ def chair(rng: np.random.Generator) -> Assembly:
     a = Assembly("chair")
     width, depth, seat = rng.uniform(0.4, 0.5), rng.uniform(0.4, 0.5), rng.uniform(0.43, 0.48)
     t, hx, hy = rng.uniform(0.03, 0.05), width / 2, depth / 2
-    a.box("seat", [-hx, -hy, seat - t], [hx, hy, seat])
-    _legs(a, hx, hy, seat - t, rng.uniform(0.025, 0.04), 0.0, rng.choice([MAIN, METAL]))
+    _slab_on_legs(a, "seat", hx, hy, seat, t, rng.uniform(0.025, 0.04), 0.0, rng)
     a.box("back", [-hx, -hy, seat], [hx, -hy + rng.uniform(0.02, 0.04), seat + rng.uniform(0.35, 0.5)])
     return a
 
