@@ -18,6 +18,7 @@ from pathlib import Path
 import typer
 from rich.console import Console
 from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn
 
 console = Console(stderr=True)
 out = Console()
@@ -122,6 +123,34 @@ def check_training_paths(data, resume, out) -> None:
         fail(f"--resume {resume}: no such checkpoint (give OUT/last.pt)")
     if out.exists() and not out.is_dir():
         fail(f"--out {out} is a file; give a folder")
+
+
+@contextmanager
+def training_run(out: Path, resume: Path | None, first_save: str = "the first epoch ended"):
+    """The block of a ``cuboids train`` command that runs its trainer, writing into ``out``: input errors
+    and a ValueError end it with one line and exit status 2, leaving no empty ``out`` behind; Ctrl-C ends it
+    with exit status 130 and the ``--resume`` that continues the run (OUT/last.pt once the trainer has
+    saved one, else the ``resume`` it started from; nothing to resume before ``first_save``)."""
+    with user_errors(), no_empty_folder(out):
+        try:
+            yield
+        except ValueError as e:
+            fail(str(e))
+        except KeyboardInterrupt:
+            last = out / "last.pt"
+            if last.is_file():
+                fail(f"interrupted; continue with --resume {last}", code=130)
+            if resume is not None:
+                fail(f"interrupted; continue with --resume {resume}", code=130)
+            fail(f"interrupted before {first_save}; nothing to resume", code=130)
+
+
+def progress_bar(label: str, *columns, **settings) -> Progress:
+    """A progress bar on stderr: the text column ``label`` (a format such as ``"{task.description}"``), the
+    bar and done/total, then ``columns`` (rich columns; a string is a text column's format); ``settings``
+    go to :class:`~rich.progress.Progress` (``transient``, ``disable``)."""
+    more = (TextColumn(c) if isinstance(c, str) else c for c in columns)
+    return Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), *more, console=console, **settings)
 
 
 def run_as_module(command, argv: list[str] | None, prog: str) -> None:

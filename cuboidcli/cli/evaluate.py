@@ -8,11 +8,11 @@ from pathlib import Path
 
 import typer
 from rich.markup import escape
-from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+from rich.progress import TimeRemainingColumn
 from rich.table import Table
 
 from cuboidcli.api import SAMPLERS, SOLVERS
-from cuboidcli.cli.common import console, fail, out, user_errors
+from cuboidcli.cli.common import console, fail, out, progress_bar, user_errors
 from cuboidcli.cli.options import config_option, device_option, fast_option, fit_config, override_option
 from cuboidcli.cli.scale_options import (
     ray_address_option,
@@ -310,14 +310,10 @@ def evaluate(
             skip_existing=skip_existing,
         )
         n_runs = len(settings.seeds)
-        columns = (
-            TextColumn("{task.description}"),
-            BarColumn(),
-            MofNCompleteColumn(),
-            TimeRemainingColumn(),
-            TextColumn("{task.fields[running]}"),
+        progress = progress_bar(
+            "{task.description}", TimeRemainingColumn(), "{task.fields[running]}", transient=True
         )
-        with Progress(*columns, console=console, transient=True) as prog:
+        with progress as prog:
             task = prog.add_task("run 1", total=len(frame_list) * n_runs, running="")
 
             def on_frame(ev) -> None:

@@ -15,6 +15,17 @@ def _input_file(result, key: str) -> Path | None:
     return Path(value) if isinstance(value, str) and Path(value).is_file() else None
 
 
+def _fitted_input_option(flag: str, what: str, used_for: str):
+    """The option naming an input the result was fitted on (``what``, ``used_for`` these outputs); by
+    default the file the result records."""
+    return typer.Option(
+        None,
+        flag,
+        help=f"{what} the result was fitted on ({used_for}); "
+        "default: the one the result records, if it exists.",
+    )
+
+
 def export(
     result_json: Path | None = typer.Argument(
         None, metavar="RESULT.json", help="A cuboids/1 result written by `cuboids fit`.", show_default=False
@@ -33,17 +44,11 @@ def export(
         help="Write the cuboids drawn over the image to this PNG, plus <name>_labels.png "
         "(0 = background, k+1 = cuboid k), <name>_labels_color.png and <name>_panel.png.",
     ),
-    image: Path | None = typer.Option(
-        None,
-        "--image",
-        help="RGB image the result was fitted on (overlay background, GLB point colours); "
-        "default: the one the result records, if it exists.",
+    image: Path | None = _fitted_input_option(
+        "--image", "RGB image", "overlay background, GLB point colours"
     ),
-    depth: Path | None = typer.Option(
-        None,
-        "--depth",
-        help="Depth map the result was fitted on (PLY, --with-points, overlay without RGB); "
-        "default: the one the result records, if it exists.",
+    depth: Path | None = _fitted_input_option(
+        "--depth", "Depth map", "PLY, --with-points, overlay without RGB"
     ),
     depth_scale: float | None = typer.Option(
         None, "--depth-scale", help="Metres per depth-PNG unit; default: the result's, else 0.001."

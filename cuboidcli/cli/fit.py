@@ -6,18 +6,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import typer
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    SpinnerColumn,
-    TextColumn,
-    TimeElapsedColumn,
-)
+from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from cuboidcli.api import Fitter
-from cuboidcli.cli.common import console, fail, out, user_errors
+from cuboidcli.cli.common import console, fail, out, progress_bar, user_errors
 from cuboidcli.cli.options import (
     DEFAULTS,
     call_with_defaults,
@@ -329,14 +322,7 @@ def _fit_folder(
         )
     tasks = [(spec, str(f), str(out_dir / f"{f.stem}_cuboids.json")) for f in todo]
     said_source = False
-    with Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        console=console,
-        disable=quiet,
-    ) as prog:
+    with progress_bar("{task.description}", TimeElapsedColumn(), disable=quiet) as prog:
         task = prog.add_task(f"fitting on {engine.describe()}", total=len(tasks))
 
         def on_result(i: int, res: Outcome) -> None:

@@ -178,9 +178,37 @@ def trains(*configs: type):
 
 def config_of(cls: type, options: dict, **given):
     """Dataclass ``cls`` made from a command's options (its parameters by name): every field an option is
-    named after is set from it, ``given`` ones from ``given``; the others keep their defaults."""
+    named after is set from it, ``given`` ones from ``given``; the others keep their defaults. A value the
+    dataclass refuses (ValueError) ends the command with its message (:func:`fail`)."""
     names = {f.name for f in dataclasses.fields(cls) if f.init}
-    return cls(**{**{k: v for k, v in options.items() if k in names}, **given})
+    try:
+        return cls(**{**{k: v for k, v in options.items() if k in names}, **given})
+    except ValueError as e:
+        fail(str(e))
+
+
+#: The end of the torchrun paragraph of a data-parallel trainer's help (:func:`multi_process`).
+SPLIT_BATCHES = """\
+The --batch scenes of a step are split over the processes (use a multiple of their number), each
+process drawing its own hypotheses, and the gradients averaged; the val frames are split too.
+Process 0 alone prints and writes OUT, which must be shared for --resume; resuming with the same
+number of processes continues the run exactly."""
+
+
+def multi_process(arguments: str, per: str = "GPU or per group of CPU cores", then: str = SPLIT_BATCHES):
+    """Decorator of a ``cuboids train`` command that runs under torchrun: appends to its help (docstring) the
+    paragraph on that, with the command line ``train ARGUMENTS``, what a process runs on (``per``) and
+    ``then``, the text after the command line."""
+
+    def add(command):
+        command.__doc__ = (
+            f"{inspect.cleandoc(command.__doc__ or '')}\n\n"
+            f"Multi-process (data parallel, one process per {per}), e.g. 2 processes:\n\n"
+            f"    torchrun --standalone --nproc_per_node 2 -m cuboidcli.cli.main train {arguments}\n\n{then}"
+        )
+        return command
+
+    return add
 
 
 def out_option(default: str):

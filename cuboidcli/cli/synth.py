@@ -7,8 +7,9 @@ from dataclasses import replace
 from pathlib import Path
 
 import typer
+from rich.progress import TimeElapsedColumn, TimeRemainingColumn
 
-from cuboidcli.cli.common import console, fail, user_errors
+from cuboidcli.cli.common import console, fail, progress_bar, user_errors
 
 
 def synth(
@@ -57,29 +58,13 @@ def synth(
         fail(f"image size {w}x{h} is too small; give --width/--height of at least 16 pixels")
     camera = base if (w, h) == (base.width, base.height) else base.scaled(w / base.width, h / base.height)
 
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        TextColumn,
-        TimeElapsedColumn,
-        TimeRemainingColumn,
-    )
-
     from cuboidcli.synth import SceneOptions, SensorOptions, split_of, write_dataset
 
     sensor = SensorOptions.clean() if clean else SensorOptions()
     options = SceneOptions(sensor=replace(sensor, inpaint=inpaint), shadows=shadows)
-    columns = (
-        TextColumn("synth"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TimeElapsedColumn(),
-        TextColumn("eta"),
-        TimeRemainingColumn(),
-    )
     start = time.perf_counter()
-    with user_errors(), Progress(*columns, console=console, transient=True) as bar:
+    progress = progress_bar("synth", TimeElapsedColumn(), "eta", TimeRemainingColumn(), transient=True)
+    with user_errors(), progress as bar:
         task = bar.add_task("frames", total=count)
         try:
             write_dataset(

@@ -6,17 +6,10 @@ from __future__ import annotations
 from pathlib import Path
 
 import typer
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TextColumn,
-    TimeElapsedColumn,
-    TimeRemainingColumn,
-)
+from rich.progress import TimeElapsedColumn, TimeRemainingColumn
 
 from cuboidcli.cli import options as opt
-from cuboidcli.cli.common import console, fail, no_empty_folder, out, resolve_device
+from cuboidcli.cli.common import console, fail, out, progress_bar, resolve_device, training_run
 from cuboidcli.learn.solver_train import SolverTrainConfig
 from cuboidcli.nets.solver import SolverNetConfig
 
@@ -27,20 +20,17 @@ def register(app: typer.Typer) -> None:
     app.add_typer(train_app, name="train")
 
 
-def _progress() -> Progress:
-    return Progress(
-        TextColumn("[bold]{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        TextColumn("{task.fields[status]}"),
-        TimeElapsedColumn(),
-        TimeRemainingColumn(),
-        console=console,
-    )
+#: The end of ``cuboids train solver``'s torchrun paragraph.
+SOLVER_PROCESSES = """\
+or torchrun ... $(which cuboids) train solver ... (the console script is a Python file);
+multi-node: --nnodes N --node_rank R --rdzv_endpoint HOST:PORT instead of --standalone. Each process
+draws --batch sets per step, so a step sees --batch x processes sets; --iters and the lr schedule
+count steps. Process 0 alone validates, prints and writes OUT, which must be shared for --resume."""
 
 
 @train_app.command("solver")
 @opt.trains(SolverTrainConfig, SolverNetConfig)
+@opt.multi_process("solver --out runs/solver", then=SOLVER_PROCESSES)
 def solver(
     iters: int = opt.train_option(SolverTrainConfig, "iters"),
     batch: int = opt.train_option(SolverTrainConfig, "batch"),
@@ -63,15 +53,6 @@ def solver(
     """Pre-train the neural cuboid solver on synthetic boxes; best weights go to OUT/best.pt.
 
     The same weights are in OUT/solver_v2.pt, the name 'cuboids fit --solver neural --weights OUT' reads.
-
-    Multi-process (data parallel, one process per GPU or per group of CPU cores), e.g. 2 processes:
-
-        torchrun --standalone --nproc_per_node 2 -m cuboidcli.cli.main train solver --out runs/solver
-
-    or torchrun ... $(which cuboids) train solver ... (the console script is a Python file);
-    multi-node: --nnodes N --node_rank R --rdzv_endpoint HOST:PORT instead of --standalone. Each process
-    draws --batch sets per step, so a step sees --batch x processes sets; --iters and the lr schedule
-    count steps. Process 0 alone validates, prints and writes OUT, which must be shared for --resume.
     """
     options = dict(locals())
     from cuboidcli.learn.distributed import launched_rank
@@ -106,10 +87,15 @@ def solver(
 
     # Under torchrun only rank 0 reports; the others would draw duplicate progress bars.
     main_rank = launched_rank() == 0
-    progress_bar = _progress()
-    progress_bar.disable = not main_rank
-    with no_empty_folder(out_dir):
-        progress, task = progress_bar, None  # shown once training starts: a refused run prints its error only
+    progress = progress_bar(
+        "[bold]{task.description}",
+        "{task.fields[status]}",
+        TimeElapsedColumn(),
+        TimeRemainingColumn(),
+        disable=not main_rank,
+    )
+    with training_run(out_dir, resume, first_save="the first checkpoint (--val-every steps)"):
+        task = None  # the bar is shown once training starts: a refused run prints its error only
 
         def on_event(record: dict) -> None:
             nonlocal task
@@ -131,8 +117,6 @@ def solver(
 
         try:
             final = train_solver(cfg, net_cfg, out_dir, resume=resume, on_event=on_event, backend=backend)
-        except ValueError as e:
-            fail(str(e))
         finally:
             if task is not None:
                 progress.stop()

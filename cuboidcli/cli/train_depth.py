@@ -13,14 +13,7 @@ from pathlib import Path
 import typer
 
 from cuboidcli.cli import options as opt
-from cuboidcli.cli.common import (
-    check_training_paths,
-    console,
-    fail,
-    no_empty_folder,
-    resolve_device,
-    user_errors,
-)
+from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, training_run
 from cuboidcli.learn.depth_train import DepthTrainConfig
 
 _DEFAULTS_NOTE = "With --resume: the checkpoint's."
@@ -136,10 +129,7 @@ def train_depth_cmd(
             f"--out {out} already holds a training run; continue it with --resume {out / 'last.pt'} "
             "or pick another --out"
         )
-    try:
-        cfg = opt.config_of(DepthTrainConfig, options, device=resolve_device(device))
-    except ValueError as e:
-        fail(str(e))
+    cfg = opt.config_of(DepthTrainConfig, options, device=resolve_device(device))
 
     def given(name: str) -> bool:  # by name: typer may bring its own copy of click's ParameterSource
         source = ctx.get_parameter_source(name)
@@ -155,18 +145,8 @@ def train_depth_cmd(
     printer = _EventPrinter(f"training the depth net on {data}; logs and checkpoints in {out}")
     if json_lines:
         printer = _print_json  # type: ignore[assignment]
-    with user_errors(), no_empty_folder(out):
-        try:
-            train_depth(data, out, cfg, resume=resume, on_event=printer, resume_overrides=overrides)
-        except ValueError as e:
-            fail(str(e))
-        except KeyboardInterrupt:
-            last = out / "last.pt"
-            if last.is_file():
-                fail(f"interrupted; continue with --resume {last}", code=130)
-            if resume is not None:
-                fail(f"interrupted; continue with --resume {resume}", code=130)
-            fail("interrupted before the first epoch ended; nothing to resume", code=130)
+    with training_run(out, resume):
+        train_depth(data, out, cfg, resume=resume, on_event=printer, resume_overrides=overrides)
 
 
 def _print_json(record: dict) -> None:

@@ -11,14 +11,7 @@ from pathlib import Path
 import typer
 
 from cuboidcli.cli import options as opt
-from cuboidcli.cli.common import (
-    check_training_paths,
-    console,
-    fail,
-    no_empty_folder,
-    resolve_device,
-    user_errors,
-)
+from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, training_run
 from cuboidcli.learn.finetune import FinetuneConfig
 
 
@@ -57,6 +50,7 @@ def _print_event(record: dict) -> None:
 
 
 @opt.trains(FinetuneConfig)
+@opt.multi_process("finetune DATA --out OUT", per="group of CPU cores")
 def train_finetune_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
     rgb: bool = opt.train_option(
@@ -104,15 +98,6 @@ def train_finetune_cmd(
 
     The best weights (validation AUC@20) go to OUT as sampler_v2.pt, solver_v2.pt and depth_v2.pt; use
     them with: cuboids fit ... --weights OUT (and --depth-model OUT/depth_v2.pt for RGB input).
-
-    Multi-process (data parallel, one process per group of CPU cores), e.g. 2 processes:
-
-        torchrun --standalone --nproc_per_node 2 -m cuboidcli.cli.main train finetune DATA --out OUT
-
-    The --batch scenes of a step are split over the processes (use a multiple of their number), each
-    process drawing its own hypotheses, and the gradients averaged; the val frames are split too.
-    Process 0 alone prints and writes OUT, which must be shared for --resume; resuming with the same
-    number of processes continues the run exactly.
     """
     options = dict(locals())
     from cuboidcli.learn.finetune import finetune
@@ -123,27 +108,19 @@ def train_finetune_cmd(
             fail(f"{name} {path}: no such file")
     if sampler_weights is not None and not sampler_weights.exists():
         fail(f"--sampler-weights {sampler_weights}: no such file or folder")
-    try:
-        cfg = opt.config_of(FinetuneConfig, options, device=resolve_device(device))
-    except ValueError as e:
-        fail(str(e))
-    with user_errors(), no_empty_folder(out):
-        try:
-            finetune(
-                cfg,
-                data,
-                out,
-                sampler_weights=sampler_weights,
-                solver_weights=solver_weights,
-                depth_weights=depth_weights,
-                resume=resume,
-                on_event=_print_event,
-                backend=backend,
-            )
-        except (ValueError, FileNotFoundError) as e:
-            fail(str(e))
-        except KeyboardInterrupt:
-            fail(f"interrupted; continue with --resume {out / 'last.pt'}", code=130)
+    cfg = opt.config_of(FinetuneConfig, options, device=resolve_device(device))
+    with training_run(out, resume):
+        finetune(
+            cfg,
+            data,
+            out,
+            sampler_weights=sampler_weights,
+            solver_weights=solver_weights,
+            depth_weights=depth_weights,
+            resume=resume,
+            on_event=_print_event,
+            backend=backend,
+        )
 
 
 def register(train_app: typer.Typer) -> None:

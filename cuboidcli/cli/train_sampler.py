@@ -12,14 +12,7 @@ from pathlib import Path
 import typer
 
 from cuboidcli.cli import options as opt
-from cuboidcli.cli.common import (
-    check_training_paths,
-    console,
-    fail,
-    no_empty_folder,
-    resolve_device,
-    user_errors,
-)
+from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, training_run
 from cuboidcli.learn.sampler_train import SamplerTrainConfig
 from cuboidcli.nets.sampler import SamplerNetConfig
 
@@ -69,6 +62,7 @@ def _print_event(record: dict) -> None:
 
 
 @opt.trains(SamplerTrainConfig, SamplerNetConfig)
+@opt.multi_process("sampler DATA --out OUT")
 def train_sampler_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
     epochs: int = opt.epochs_option(SamplerTrainConfig),
@@ -109,15 +103,6 @@ def train_sampler_cmd(
     """Train the sampling-weight network on DATA; the best weights go to OUT/sampler_v2.pt.
 
     Use them with: cuboids fit ... --sampler learned --weights OUT
-
-    Multi-process (data parallel, one process per GPU or per group of CPU cores), e.g. 2 processes:
-
-        torchrun --standalone --nproc_per_node 2 -m cuboidcli.cli.main train sampler DATA --out OUT
-
-    The --batch scenes of a step are split over the processes (use a multiple of their number), each
-    process drawing its own hypotheses, and the gradients averaged; the val frames are split too.
-    Process 0 alone prints and writes OUT, which must be shared for --resume; resuming with the same
-    number of processes continues the run exactly.
     """
     options = dict(locals())
     from cuboidcli.learn.sampler_train import train_sampler
@@ -125,20 +110,10 @@ def train_sampler_cmd(
     check_training_paths(data, resume, out)
     if blocks < 0:
         fail(f"--blocks must be at least 0 (got {blocks})")
-    try:
-        cfg = opt.config_of(SamplerTrainConfig, options, device=resolve_device(device))
-        net_cfg = opt.config_of(SamplerNetConfig, options)
-    except ValueError as e:
-        fail(str(e))
-    with user_errors(), no_empty_folder(out):
-        try:
-            train_sampler(
-                cfg, data, out, net_cfg=net_cfg, resume=resume, on_event=_print_event, backend=backend
-            )
-        except ValueError as e:
-            fail(str(e))
-        except KeyboardInterrupt:
-            fail(f"interrupted; continue with --resume {out / 'last.pt'}", code=130)
+    cfg = opt.config_of(SamplerTrainConfig, options, device=resolve_device(device))
+    net_cfg = opt.config_of(SamplerNetConfig, options)
+    with training_run(out, resume):
+        train_sampler(cfg, data, out, net_cfg=net_cfg, resume=resume, on_event=_print_event, backend=backend)
 
 
 def register(train_app: typer.Typer) -> None:
