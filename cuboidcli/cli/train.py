@@ -8,7 +8,7 @@ from pathlib import Path
 import typer
 from rich.progress import TimeElapsedColumn, TimeRemainingColumn
 
-from cuboidcli.cli import options as opt
+from cuboidcli.cli import train_options as opt
 from cuboidcli.cli.common import console, fail, out, progress_bar, resolve_device, training_run
 from cuboidcli.learn.solver_train import SolverTrainConfig
 from cuboidcli.nets.solver import SolverNetConfig

@@ -11,7 +11,7 @@ from pathlib import Path
 
 import typer
 
-from cuboidcli.cli import options as opt
+from cuboidcli.cli import train_options as opt
 from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, training_run
 from cuboidcli.learn.sampler_train import SamplerTrainConfig
 from cuboidcli.nets.sampler import SamplerNetConfig

@@ -1,12 +1,13 @@
-"""The options of the cuboids train commands are defined once (cuboidcli/cli/options.py): an option named
-after a field of the config dataclass its command trains with takes that field's default."""
+"""The options of the cuboids train commands are defined once (cuboidcli/cli/train_options.py): an option
+named after a field of the config dataclass its command trains with takes that field's default."""
 
 from __future__ import annotations
 
 import dataclasses
 
-from cuboidcli.cli.options import field_default, option_defaults
+from cuboidcli.cli.options import option_defaults
 from cuboidcli.cli.train import train_app
+from cuboidcli.cli.train_options import field_default
 
 #: (command, field) -> (the CLI default, why it is not the field's default).
 OTHER_DEFAULTS = {
