@@ -132,8 +132,6 @@ class FinetuneConfig(SamplerSchedule):
     kappa_corr: float = 0.0
     kappa_entropy: float = 0.0
     kappa_im: float = 0.0
-    seed: int = 0
-    """Seeds the frame order and every draw."""
     val_hypotheses: int = 512
 
     def __post_init__(self) -> None:

@@ -60,6 +60,7 @@ from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, 
 from cuboidcli.learn.trainer import (
     Run,
     RunConfig,
+    RunFields,
     StepResult,
     TrainingJob,
     Validation,
@@ -92,11 +93,11 @@ def draw_seed(seed: int, rank: int = 0, epoch: int = 0) -> int:
 
 
 @dataclass(frozen=True)
-class SamplerSchedule:
+class SamplerSchedule(RunFields):
     """The settings a sampler training run (:class:`SamplerTrainConfig`) and a fine-tuning run
     (:class:`cuboidcli.learn.finetune.FinetuneConfig`) share: the sampling-weight network's loss, the
-    frames, validation and the run. Defaults are the sampler trainer's; a subclass redeclares a field to
-    give it another default (and docstring)."""
+    frames, validation and the run (:class:`~cuboidcli.learn.trainer.RunFields`). Defaults are the
+    sampler trainer's; a subclass redeclares a field to give it another default (and docstring)."""
 
     epochs: int = 25
     """N_e: epochs (also the length of the tau_c schedule)."""
@@ -128,11 +129,6 @@ class SamplerSchedule:
     """Scenes per epoch; None = every training frame once (the paper used 500 random scenes for SMH)."""
     grid_step: int = 8
     """Fitting points: every n-th pixel (8: 60x80 of 480x640)."""
-    seed: int = 0
-    """Seeds the initial weights, the frame order of each epoch and every draw."""
-    threads: int = 1
-    """torch CPU threads."""
-    device: str = "cpu"
     workers: int = 1
     """Threads reading and preparing frames."""
     val_hypotheses: int = 256
@@ -141,8 +137,6 @@ class SamplerSchedule:
     """Validate on at most this many val frames (None = all)."""
     validate_initial: bool = True
     """Validate the untrained net before the first epoch (a reference point in the log)."""
-    max_minutes: float | None = None
-    """Stop after the epoch during which this much wall time (in this process) has passed."""
 
     def __post_init__(self) -> None:
         if self.corr_mode not in CORR_MODES:

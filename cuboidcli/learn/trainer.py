@@ -131,6 +131,52 @@ class RunConfig:
         return re.sub(r"\{[^}]*\}", "*", self.snapshot_name)
 
 
+@dataclass(frozen=True)
+class RunFields:
+    """The fields of a trainer's config that :meth:`RunConfig.of` takes over into its run: the seed, where
+    the steps run and the time budget. A config redeclares a field to give it another default."""
+
+    seed: int = 0
+    """Seeds the initial weights (of a network trained from scratch) and every random draw of the run: the
+    order of the data, the batches, augmentation, hypotheses."""
+    threads: int = 1
+    """torch CPU threads (the machine's cores are shared)."""
+    device: str = "cpu"
+    """torch device of the training steps."""
+    max_minutes: float | None = None
+    """Time budget, minutes of training wall time: the run ends once it is spent, with a validation and
+    a checkpoint. Solver and depth training count the time of all sessions of a resumed run and let their
+    cosine decay follow the budget when it runs ahead of the steps (such a run depends on the machine's
+    speed: not bit-exact); sampler training and fine-tuning count this session and stop after the epoch
+    during which the budget ran out."""
+
+
+@dataclass(frozen=True)
+class WarmupCosine:
+    """The learning-rate schedule of a trainer's config: a linear warm-up to ``lr``, then a cosine decay to
+    ``lr * final_lr_ratio``, with the gradients clipped to a global norm. A config redeclares a field to
+    give it another default."""
+
+    lr: float = 1e-3
+    """Peak learning rate: warm-up, then cosine decay."""
+    warmup: int = 500
+    """Linear warm-up steps from lr / warmup to lr."""
+    final_lr_ratio: float = 0.02
+    """The cosine decay ends at lr * final_lr_ratio."""
+    grad_clip: float = 1.0
+    """Max global gradient norm."""
+
+    def lr_at(self, step: int, total: int, time_fraction: float = 0.0) -> float:
+        """The learning rate of step ``step`` (0-based) of ``total``: the warm-up over ``warmup`` steps,
+        then the cosine decay, which follows the time budget (``time_fraction``, the share used) when that
+        runs out first."""
+        if step < self.warmup:
+            return self.lr * (step + 1) / self.warmup
+        progress = min(1.0, max((step - self.warmup) / max(1, total - self.warmup), time_fraction))
+        ratio = self.final_lr_ratio
+        return self.lr * (ratio + (1.0 - ratio) * 0.5 * (1.0 + math.cos(math.pi * progress)))
+
+
 @dataclass
 class StepResult:
     """What one optimizer step reports."""
@@ -510,18 +556,6 @@ def run_job(
             return Run(cfg, ctx, job, on_event or (lambda record: None)).train(state)
     finally:
         torch.set_num_threads(threads_before)
-
-
-def warmup_cosine_lr(
-    step: int, total: int, lr: float, warmup: int, final_ratio: float, time_fraction: float = 0.0
-) -> float:
-    """The learning rate of step ``step`` (0-based) of ``total``: a linear warm-up over ``warmup`` steps,
-    then a cosine decay to ``final_ratio * lr`` that follows the time budget (``time_fraction``, the share
-    used) when that runs out first."""
-    if step < warmup:
-        return lr * (step + 1) / warmup
-    progress = min(1.0, max((step - warmup) / max(1, total - warmup), time_fraction))
-    return lr * (final_ratio + (1.0 - final_ratio) * 0.5 * (1.0 + math.cos(math.pi * progress)))
 
 
 def shared_batch_step(
