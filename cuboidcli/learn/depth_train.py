@@ -35,11 +35,11 @@ from cuboidcli.depth.estimator import BuiltinDepthEstimator, resize
 from cuboidcli.depth.evaluate import evaluate_frames
 from cuboidcli.io.dataset import Frame, list_frames
 from cuboidcli.learn.trainer import (
+    OneNetJob,
     Run,
     RunConfig,
     RunFields,
     StepResult,
-    TrainingJob,
     Validation,
     WarmupCosine,
     read_state,
@@ -52,9 +52,7 @@ from cuboidcli.nets.depth import DepthNet, DepthNetConfig
 
 @dataclass(frozen=True)
 class DepthTrainConfig(WarmupCosine, RunFields):
-    """Schedule, loss and augmentation of a training run (the run's fields are
-    :class:`~cuboidcli.learn.trainer.RunFields`', the AdamW lr schedule's
-    :class:`~cuboidcli.learn.trainer.WarmupCosine`')."""
+    """Schedule, loss and augmentation of a training run; AdamW follows the :class:`WarmupCosine` schedule."""
 
     epochs: int = 60
     """Passes over the training split."""
@@ -184,11 +182,12 @@ def depth_loss(pred: torch.Tensor, target: torch.Tensor, cfg: DepthTrainConfig) 
     return silog.mean() + cfg.l1_weight * l1
 
 
-class DepthJob(TrainingJob):
+class DepthJob(OneNetJob):
     """Training of the depth network as a job of :func:`~cuboidcli.learn.trainer.run_job`: epoch-based, in
     one process, validated after every epoch on the val split."""
 
     name = "depth"
+    net_name = "depth"
     state_kind = STATE_KIND
     step_event = "train"
     end_event = "done"
@@ -254,16 +253,8 @@ class DepthJob(TrainingJob):
         self.val = evaluate_frames(estimator, self.val_frames)["mean"]
         return Validation(self.val["abs_rel"], self.val)
 
-    def state(self, run: Run) -> dict:
-        return {
-            "config": self.net_cfg.to_dict(),
-            "state_dict": self.net.state_dict(),
-            "generator": self.gen.get_state(),
-            "train_config": asdict(self.cfg),
-        }
-
-    def networks(self) -> dict[str, torch.nn.Module]:
-        return {"depth": self.net}
+    def more_state(self, run: Run) -> dict:
+        return {"generator": self.gen.get_state()}
 
     def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
         meta = {

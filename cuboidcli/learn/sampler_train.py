@@ -58,11 +58,11 @@ from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
 from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, occlusion_threshold
 from cuboidcli.learn.trainer import (
+    OneNetJob,
     Run,
     RunConfig,
     RunFields,
     StepResult,
-    TrainingJob,
     Validation,
     batched,
     read_state,
@@ -297,11 +297,12 @@ def draw_states(gen: torch.Generator, ctx: DistContext) -> dict:
     return {"draw_rng": gen.get_state(), "draw_rngs": ctx.gather(gen.get_state())}
 
 
-class SamplerJob(TrainingJob):
+class SamplerJob(OneNetJob):
     """Training of the sampling-weight network as a job of :func:`~cuboidcli.learn.trainer.run_job`:
     epoch-based, B scenes a step split over the ranks, validated after every epoch."""
 
     name = "sampler"
+    net_name = "sampler"
     state_kind = STATE_KIND
     rate_key = "scenes_per_s"
 
@@ -355,17 +356,8 @@ class SamplerJob(TrainingJob):
         metrics, key, value = validate(self.net, self.val_frames, self.fit, self.cfg, run.ctx)
         return Validation(value, {"key": key, **metrics})
 
-    def state(self, run: Run) -> dict:
-        return {
-            "config": self.net_cfg.to_dict(),
-            "state_dict": self.net.state_dict(),
-            **draw_states(self.gen, run.ctx),
-            "train_config": asdict(self.cfg),
-            "fit_config": self.fit.to_dict(),
-        }
-
-    def networks(self) -> dict[str, torch.nn.Module]:
-        return {"sampler": self.net}
+    def more_state(self, run: Run) -> dict:
+        return {**draw_states(self.gen, run.ctx), "fit_config": self.fit.to_dict()}
 
     def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
         meta = {

@@ -35,11 +35,11 @@ from torch import Tensor
 from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.learn.trainer import (
+    OneNetJob,
     Run,
     RunConfig,
     RunFields,
     StepResult,
-    TrainingJob,
     Validation,
     WarmupCosine,
     read_state,
@@ -64,9 +64,8 @@ RANK_SEED_STRIDE = 2**48
 
 @dataclass(frozen=True)
 class SolverTrainConfig(WarmupCosine, RunFields):
-    """Optimisation schedule and bookkeeping of a pre-training run (the run's fields are
-    :class:`~cuboidcli.learn.trainer.RunFields`', the lr schedule's
-    :class:`~cuboidcli.learn.trainer.WarmupCosine`')."""
+    """Optimisation schedule and bookkeeping of a pre-training run; Adam follows the :class:`WarmupCosine`
+    schedule."""
 
     iters: int = 50000
     """Optimizer steps (the paper: 150k at batch 4096 on a GPU)."""
@@ -136,11 +135,12 @@ def _net_solver(net: SolverNet) -> Callable:
     return NeuralSolver(net=net, device=next(net.parameters()).device)
 
 
-class SolverJob(TrainingJob):
+class SolverJob(OneNetJob):
     """Pre-training of the neural solver as a job of :func:`~cuboidcli.learn.trainer.run_job`: step-based,
     one synthetic batch a step; rank 0 alone validates (on the fixed held-out sets)."""
 
     name = "solver"
+    net_name = "solver"
     state_kind = STATE_KIND
     step_event = "train"
     end_event = "done"
@@ -199,16 +199,8 @@ class SolverJob(TrainingJob):
         flat = {f"{k}_{m}": v for k, ms in self.metrics.items() for m, v in ms.items()}
         return Validation(self.metrics["noisy"]["msd_m2"], {"iteration": run.step, **flat})
 
-    def state(self, run: Run) -> dict:
-        return {
-            "config": self.net_cfg.to_dict(),
-            "state_dict": self.net.state_dict(),
-            "train_config": asdict(self.cfg),
-            "data_config": self.data_cfg.to_dict(),
-        }
-
-    def networks(self) -> dict[str, torch.nn.Module]:
-        return {"solver": self.net}
+    def more_state(self, run: Run) -> dict:
+        return {"data_config": self.data_cfg.to_dict()}
 
     def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
         meta = {

@@ -37,7 +37,7 @@ import re
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import ClassVar, TypeVar
 
@@ -47,7 +47,7 @@ import torch
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.learn.distributed import DistContext, distributed, launched_world_size, state_sha256
-from cuboidcli.nets.checkpoint import parameter_count
+from cuboidcli.nets.checkpoint import NetConfig, parameter_count
 
 LAST = "last.pt"
 """The training state a run resumes from."""
@@ -267,6 +267,34 @@ class TrainingJob(ABC):
     def agreement(self) -> object:
         """What every rank must hold equal besides the weights (the names of its data), checked once."""
         return None
+
+
+class OneNetJob(TrainingJob):
+    """A job that trains one network, :attr:`net` (built from :attr:`net_cfg`), under the trainer's config
+    dataclass :attr:`cfg`. Its training state holds the net's config (``config``) and weights
+    (``state_dict``) and the trainer's config (``train_config``) besides the entries of
+    :meth:`more_state`."""
+
+    net_name: ClassVar[str]
+    """The network's name in :meth:`networks`."""
+    cfg: object
+    """The trainer's config (a dataclass)."""
+    net: torch.nn.Module
+    """Set by :meth:`setup`."""
+    net_cfg: NetConfig
+    """The net's config (set by :meth:`setup` at the latest)."""
+
+    @abstractmethod
+    def more_state(self, run: Run) -> dict:
+        """The job's entries of the training state besides the net and the configs (its generators, the
+        configs of its data and fitting)."""
+
+    def state(self, run: Run) -> dict:
+        own = {"config": self.net_cfg.to_dict(), "state_dict": self.net.state_dict()}
+        return {**own, **self.more_state(run), "train_config": asdict(self.cfg)}
+
+    def networks(self) -> dict[str, torch.nn.Module]:
+        return {self.net_name: self.net}
 
 
 def read_state(path: str | Path, kind: str, what: str, hint: str = LAST) -> dict:
