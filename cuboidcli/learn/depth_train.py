@@ -42,8 +42,7 @@ from cuboidcli.learn.trainer import (
     StepResult,
     Validation,
     WarmupCosine,
-    read_state,
-    resumed_config,
+    resumed,
     run_job,
 )
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
@@ -102,11 +101,6 @@ BEST = "best.pt"
 
 RESUME_OVERRIDES = ("threads", "max_minutes", "log_every", "device")
 """Fields of the caller's config that replace the checkpoint's when resuming, unless told otherwise."""
-
-
-def load_train_state(path: str | Path) -> dict:
-    """The training state of a ``last.pt``; ValueError when ``path`` holds something else."""
-    return read_state(path, STATE_KIND, "depth training")
 
 
 def focal_at_input(camera, cfg: DepthNetConfig) -> float:
@@ -303,10 +297,8 @@ def train_depth(
     Returns the final record (epoch, best validation AbsRel, paths).
     """
     cfg = cfg or DepthTrainConfig()
-    state = None
-    if resume is not None:
-        state = load_train_state(resume)
-        cfg = resumed_config(state["train_config"], cfg, resume_overrides)
+    state, cfg = resumed(resume, cfg, resume_overrides, STATE_KIND, "depth training")
+    if state is not None:
         net_cfg = DepthNetConfig.from_dict(state["config"])
     run = RunConfig.of(
         cfg, out_dir, resume, max_epochs=cfg.epochs, stop_within_epoch=True, minutes_span_resumes=True

@@ -87,8 +87,7 @@ from cuboidcli.learn.trainer import (
     TrainingJob,
     Validation,
     batched,
-    read_state,
-    resumed_config,
+    resumed,
     run_job,
     shared_batch_step,
 )
@@ -542,10 +541,8 @@ def finetune(
     ``on_event`` and writes to ``out_dir``, which must be visible to every rank for ``resume``.
     """
     fit = fit or FitConfig()
-    state = None
-    if resume is not None:
-        state = read_state(resume, STATE_KIND, "fine-tuning", "OUT/last.pt")
-        cfg = resumed_config(state["config"], cfg, RESUME_OVERRIDES)
+    state, cfg = resumed(resume, cfg, RESUME_OVERRIDES, STATE_KIND, "fine-tuning", "OUT/last.pt", "config")
+    if state is not None:
         fit = FitConfig(**state["fit_config"])
     run = RunConfig.of(cfg, out_dir, resume, max_epochs=cfg.epochs, backend=backend)
     weights = (sampler_weights, solver_weights, depth_weights)

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -56,7 +56,13 @@ from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
-from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, occlusion_threshold
+from cuboidcli.learn.sampler_loss import (
+    CORR_MODES,
+    LossParams,
+    LossSettings,
+    instance_loss,
+    occlusion_threshold,
+)
 from cuboidcli.learn.trainer import (
     OneNetJob,
     Run,
@@ -65,8 +71,7 @@ from cuboidcli.learn.trainer import (
     StepResult,
     Validation,
     batched,
-    read_state,
-    resumed_config,
+    resumed,
     run_job,
     shared_batch_step,
 )
@@ -93,10 +98,11 @@ def draw_seed(seed: int, rank: int = 0, epoch: int = 0) -> int:
 
 
 @dataclass(frozen=True)
-class SamplerSchedule(RunFields):
+class SamplerSchedule(LossSettings, RunFields):
     """The settings a sampler training run (:class:`SamplerTrainConfig`) and a fine-tuning run
-    (:class:`cuboidcli.learn.finetune.FinetuneConfig`) share: the sampling-weight network's loss, the
-    frames, validation and the run (:class:`~cuboidcli.learn.trainer.RunFields`). Defaults are the
+    (:class:`cuboidcli.learn.finetune.FinetuneConfig`) share: the sampling-weight network's loss
+    (:class:`~cuboidcli.learn.sampler_loss.LossSettings`), the frames, validation and the run
+    (:class:`~cuboidcli.learn.trainer.RunFields`). Defaults are the
     sampler trainer's; a subclass redeclares a field to give it another default (and docstring)."""
 
     epochs: int = 25
@@ -109,22 +115,10 @@ class SamplerSchedule(RunFields):
     default is 10x the paper's. Lower it (or use 1e-5) for long runs if the validation AUC oscillates."""
     batch: int = 2
     """B: scenes per optimizer step (over all processes)."""
-    hypotheses: int = 32
-    """|H|: hypotheses per sampled set."""
     instances: int = 8
     """|M|: sequential instances per scene."""
-    samples_k: int = 2
-    """K: hypothesis sets per instance (the baseline needs K >= 2)."""
-    alpha: float = 10.0
-    """alpha: selection softmax scale on gains in fractions of the points."""
-    kappa_corr: float = 1.0
-    """Weight of the map-correlation loss."""
     corr_mode: str = "positive"
-    """l_corr variant (see sampler_loss.LossParams.corr_mode); "paper" is the paper's plain sum."""
-    kappa_entropy: float = 1.0
-    kappa_im: float = 0.01
-    loss_clamp: float = 0.3
-    """Clamp of the baseline-subtracted task loss (see sampler_loss)."""
+    """l_corr variant (see sampler_loss.LossSettings.corr_mode); "paper" is the paper's plain sum."""
     scenes_per_epoch: int | None = None
     """Scenes per epoch; None = every training frame once (the paper used 500 random scenes for SMH)."""
     grid_step: int = 8
@@ -159,19 +153,14 @@ class SamplerTrainConfig(SamplerSchedule):
     """epoch_XXX.pt files kept."""
 
     def loss_params(self, fit: FitConfig, epoch: int) -> LossParams:
+        """The loss of an instance in ``epoch``: this config's :class:`LossSettings`, ``fit``'s minimal set
+        and inlier function and the epoch's occlusion threshold."""
         return LossParams(
-            hypotheses=self.hypotheses,
-            samples_k=self.samples_k,
+            **{f.name: getattr(self, f.name) for f in fields(LossSettings)},
             min_set=fit.min_set,
-            alpha=self.alpha,
             tau_sq_m2=fit.tau_sq_m2,
             beta=fit.beta,
             tau_c_sq_m2=occlusion_threshold(epoch, self.epochs, fit.tau_sq_m2, self.tau_c_start_sq_m2),
-            loss_clamp=self.loss_clamp,
-            kappa_corr=self.kappa_corr,
-            corr_mode=self.corr_mode,
-            kappa_entropy=self.kappa_entropy,
-            kappa_im=self.kappa_im,
         )
 
 
@@ -347,8 +336,8 @@ class SamplerJob(OneNetJob):
 
         mean = shared_batch_step(run.ctx, self.optimizer, self.net.parameters(), batch, one)
         names = [self.scenes[i].name for i in batch]
-        fields = {"epoch": run.epoch + 1, "tau_c_sq_m2": lp.tau_c_sq_m2, "scenes": names}
-        return StepResult(mean, fields, items=len(batch))
+        step_fields = {"epoch": run.epoch + 1, "tau_c_sq_m2": lp.tau_c_sq_m2, "scenes": names}
+        return StepResult(mean, step_fields, items=len(batch))
 
     def validate(self, run: Run) -> Validation | None:
         if not self.val_frames:
@@ -422,10 +411,9 @@ def train_sampler(
     all equal when the replicas stayed in sync.
     """
     fit = fit or FitConfig()
-    state = None
-    if resume is not None:
-        state = read_state(resume, STATE_KIND, "sampler training", "last.pt or epoch_*.pt")
-        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
+    hint = "last.pt or epoch_*.pt"
+    state, cfg = resumed(resume, cfg, RESUME_OVERRIDES, STATE_KIND, "sampler training", hint)
+    if state is not None:
         net_cfg = SamplerNetConfig.from_dict(state["config"])
         fit = FitConfig(**state["fit_config"])
     run = RunConfig.of(

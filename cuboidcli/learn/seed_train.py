@@ -38,8 +38,7 @@ from cuboidcli.learn.trainer import (
     Run,
     RunConfig,
     StepResult,
-    read_state,
-    resumed_config,
+    resumed,
     run_job,
 )
 from cuboidcli.nets.checkpoint import checkpoint_dict
@@ -227,10 +226,8 @@ def train_seed_sampler(
     weights path. ``resume``: a ``last.pt`` of this trainer; its settings apply except ``epochs`` and
     ``max_minutes`` of ``cfg``. ``max_minutes`` counts from the start, the recording included."""
     fit = fit or FitConfig()
-    state = None
-    if resume is not None:
-        state = read_state(resume, STATE_KIND, "seed-sampler training")
-        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
+    state, cfg = resumed(resume, cfg, RESUME_OVERRIDES, STATE_KIND, "seed-sampler training")
+    if state is not None:
         fit = FitConfig(**state["fit_config"])
     run = RunConfig.of(
         cfg, out_dir, resume, max_epochs=cfg.epochs, stop_within_epoch=True, log_every=None, threads=None

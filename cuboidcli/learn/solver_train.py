@@ -42,8 +42,7 @@ from cuboidcli.learn.trainer import (
     StepResult,
     Validation,
     WarmupCosine,
-    read_state,
-    resumed_config,
+    resumed,
     run_job,
 )
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
@@ -258,10 +257,9 @@ def train_solver(
     it on all of them). The final record holds ``world_size`` and ``param_sha256``, one hash of the final
     weights per rank, all equal when the replicas stayed in sync.
     """
-    state = None
-    if resume is not None:
-        state = read_state(resume, STATE_KIND, "solver training", "last.pt or step_*.pt")
-        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
+    hint = "last.pt or step_*.pt"
+    state, cfg = resumed(resume, cfg, RESUME_OVERRIDES, STATE_KIND, "solver training", hint)
+    if state is not None:
         net_cfg = SolverNetConfig.from_dict(state["config"])
         data_cfg = SyntheticConfig(**state["data_config"])
     run = RunConfig.of(

@@ -144,11 +144,10 @@ class RunFields:
     device: str = "cpu"
     """torch device of the training steps."""
     max_minutes: float | None = None
-    """Time budget, minutes of training wall time: the run ends once it is spent, with a validation and
-    a checkpoint. Solver and depth training count the time of all sessions of a resumed run and let their
-    cosine decay follow the budget when it runs ahead of the steps (such a run depends on the machine's
-    speed: not bit-exact); sampler training and fine-tuning count this session and stop after the epoch
-    during which the budget ran out."""
+    """Time budget, minutes of training wall time; the run then ends with a validation and a checkpoint.
+    Solver and depth training sum the sessions of a resumed run and their cosine decay follows the budget
+    when it runs ahead (not bit-exact then); sampler training and fine-tuning count this session and stop
+    after the epoch in which it ran out."""
 
 
 @dataclass(frozen=True)
@@ -309,10 +308,23 @@ def read_state(path: str | Path, kind: str, what: str, hint: str = LAST) -> dict
     return state
 
 
-def resumed_config(saved: dict, given: Config, keep: Iterable[str]) -> Config:
-    """The config a resumed run goes on with: the checkpoint's (``saved``, a dict of the dataclass type of
-    ``given``) with the fields ``keep`` taken from ``given``."""
-    return replace(type(given)(**saved), **{k: getattr(given, k) for k in keep})
+def resumed(
+    resume: str | Path | None,
+    given: Config,
+    keep: Iterable[str],
+    kind: str,
+    what: str,
+    hint: str = LAST,
+    key: str = "train_config",
+) -> tuple[dict | None, Config]:
+    """What a trainer called with ``resume`` goes on from: the training state stored there
+    (:func:`read_state` of ``kind``, ``what`` and ``hint``) and the config of the checkpoint (its entry
+    ``key``, a dict of the dataclass type of ``given``) with the fields ``keep`` taken from ``given``.
+    A fresh run (``resume`` None): None and ``given``."""
+    if resume is None:
+        return None, given
+    state = read_state(resume, kind, what, hint)
+    return state, replace(type(given)(**state[key]), **{k: getattr(given, k) for k in keep})
 
 
 def params_sha256(networks: dict[str, torch.nn.Module]) -> str:
