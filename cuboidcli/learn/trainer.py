@@ -2,8 +2,10 @@
 
 A job says what is particular to it: its data, networks and optimizer (:meth:`~TrainingJob.setup`), one
 optimizer step (:meth:`~TrainingJob.step`, on the items :meth:`~TrainingJob.batches` yields), validation
-(:meth:`~TrainingJob.validate`) and what it adds to the training state (:meth:`~TrainingJob.state`). A
-:class:`RunConfig` says where and how long. The loop does the rest, the same way for every job:
+(:meth:`~TrainingJob.validate`) and what it adds to the training state (:meth:`~TrainingJob.state`); a
+job that trains one network derives from :class:`OneNetJob`. A :class:`RunConfig` says where and how
+long (the trainers' configs share the fields it takes over, :class:`RunFields`, and their learning-rate
+schedule, :class:`WarmupCosine`). The loop does the rest, the same way for every job:
 
 - **Processes.** It joins the ``torchrun`` process group for the run (:mod:`cuboidcli.learn.distributed`)
   and sets torch's thread count, restoring it afterwards. Every rank runs the job's steps and validations
