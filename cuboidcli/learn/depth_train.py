@@ -35,37 +35,31 @@ from cuboidcli.depth.estimator import BuiltinDepthEstimator, resize
 from cuboidcli.depth.evaluate import evaluate_frames
 from cuboidcli.io.dataset import Frame, list_frames
 from cuboidcli.learn.trainer import (
+    OneNetJob,
     Run,
     RunConfig,
+    RunFields,
     StepResult,
-    TrainingJob,
     Validation,
-    read_state,
-    resumed_config,
+    WarmupCosine,
+    resumed,
     run_job,
-    warmup_cosine_lr,
 )
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
 from cuboidcli.nets.depth import DepthNet, DepthNetConfig
 
 
 @dataclass(frozen=True)
-class DepthTrainConfig:
-    """Schedule, loss and augmentation of a training run."""
+class DepthTrainConfig(WarmupCosine, RunFields):
+    """Schedule, loss and augmentation of a training run; AdamW follows the :class:`WarmupCosine` schedule."""
 
     epochs: int = 60
     """Passes over the training split."""
     batch: int = 8
     """Images per optimizer step."""
-    lr: float = 1e-3
-    """Peak AdamW learning rate; warm-up, then cosine decay."""
     weight_decay: float = 1e-4
     warmup: int = 100
-    """Linear warm-up steps."""
-    final_lr_ratio: float = 0.02
-    """The cosine decay ends at lr * final_lr_ratio."""
     grad_clip: float = 5.0
-    """Max global gradient norm."""
     silog_lambda: float = 0.85
     """lambda of the scale-invariant log loss (1 = fully scale invariant)."""
     l1_weight: float = 0.2
@@ -76,17 +70,8 @@ class DepthTrainConfig:
     """Random horizontal flips."""
     jitter: float = 0.3
     """Colour jitter strength: factors drawn from [1 - jitter, 1 + jitter]."""
-    seed: int = 0
-    """Seeds the initial weights, the order of the frames and the augmentation."""
-    threads: int = 1
-    """torch CPU threads (the machine's cores are shared)."""
     log_every: int = 10
     """Print and log the training loss every N steps."""
-    max_minutes: float | None = None
-    """Budget of training wall time (summed over resumed sessions): the cosine decay then follows whichever
-    budget runs out faster, epochs or time, and the run ends with a validation when either is spent."""
-    device: str = "cpu"
-    """torch device of the forward and backward passes (augmentation stays on the CPU)."""
 
     def __post_init__(self) -> None:
         for name in ("epochs", "batch", "threads", "log_every"):
@@ -116,11 +101,6 @@ BEST = "best.pt"
 
 RESUME_OVERRIDES = ("threads", "max_minutes", "log_every", "device")
 """Fields of the caller's config that replace the checkpoint's when resuming, unless told otherwise."""
-
-
-def load_train_state(path: str | Path) -> dict:
-    """The training state of a ``last.pt``; ValueError when ``path`` holds something else."""
-    return read_state(path, STATE_KIND, "depth training")
 
 
 def focal_at_input(camera, cfg: DepthNetConfig) -> float:
@@ -196,16 +176,12 @@ def depth_loss(pred: torch.Tensor, target: torch.Tensor, cfg: DepthTrainConfig) 
     return silog.mean() + cfg.l1_weight * l1
 
 
-def lr_at(step: int, total_steps: int, cfg: DepthTrainConfig, time_fraction: float = 0.0) -> float:
-    """Linear warm-up, then cosine down to final_lr_ratio * lr (following time when it runs ahead)."""
-    return warmup_cosine_lr(step, total_steps, cfg.lr, cfg.warmup, cfg.final_lr_ratio, time_fraction)
-
-
-class DepthJob(TrainingJob):
+class DepthJob(OneNetJob):
     """Training of the depth network as a job of :func:`~cuboidcli.learn.trainer.run_job`: epoch-based, in
     one process, validated after every epoch on the val split."""
 
     name = "depth"
+    net_name = "depth"
     state_kind = STATE_KIND
     step_event = "train"
     end_event = "done"
@@ -255,7 +231,7 @@ class DepthJob(TrainingJob):
         cfg, net, opt = self.cfg, self.net, self.optimizer
         x, target = augment(self.rgb_all[idx].float() / 255.0, self.depth_all[idx], cfg, self.gen)
         x, target = x.to(run.device), target.to(run.device)
-        lr = lr_at(run.step, self.total_steps, cfg, run.time_fraction())
+        lr = cfg.lr_at(run.step, self.total_steps, run.time_fraction())
         for group in opt.param_groups:
             group["lr"] = lr
         loss = depth_loss(net(net.normalise(x)), target, cfg)
@@ -271,16 +247,8 @@ class DepthJob(TrainingJob):
         self.val = evaluate_frames(estimator, self.val_frames)["mean"]
         return Validation(self.val["abs_rel"], self.val)
 
-    def state(self, run: Run) -> dict:
-        return {
-            "config": self.net_cfg.to_dict(),
-            "state_dict": self.net.state_dict(),
-            "generator": self.gen.get_state(),
-            "train_config": asdict(self.cfg),
-        }
-
-    def networks(self) -> dict[str, torch.nn.Module]:
-        return {"depth": self.net}
+    def more_state(self, run: Run) -> dict:
+        return {"generator": self.gen.get_state()}
 
     def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
         meta = {
@@ -329,10 +297,8 @@ def train_depth(
     Returns the final record (epoch, best validation AbsRel, paths).
     """
     cfg = cfg or DepthTrainConfig()
-    state = None
-    if resume is not None:
-        state = load_train_state(resume)
-        cfg = resumed_config(state["train_config"], cfg, resume_overrides)
+    state, cfg = resumed(resume, cfg, resume_overrides, STATE_KIND, "depth training")
+    if state is not None:
         net_cfg = DepthNetConfig.from_dict(state["config"])
     run = RunConfig.of(
         cfg, out_dir, resume, max_epochs=cfg.epochs, stop_within_epoch=True, minutes_span_resumes=True

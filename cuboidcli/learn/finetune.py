@@ -87,8 +87,7 @@ from cuboidcli.learn.trainer import (
     TrainingJob,
     Validation,
     batched,
-    read_state,
-    resumed_config,
+    resumed,
     run_job,
     shared_batch_step,
 )
@@ -132,8 +131,6 @@ class FinetuneConfig(SamplerSchedule):
     kappa_corr: float = 0.0
     kappa_entropy: float = 0.0
     kappa_im: float = 0.0
-    seed: int = 0
-    """Seeds the frame order and every draw."""
     val_hypotheses: int = 512
 
     def __post_init__(self) -> None:
@@ -544,10 +541,8 @@ def finetune(
     ``on_event`` and writes to ``out_dir``, which must be visible to every rank for ``resume``.
     """
     fit = fit or FitConfig()
-    state = None
-    if resume is not None:
-        state = read_state(resume, STATE_KIND, "fine-tuning", "OUT/last.pt")
-        cfg = resumed_config(state["config"], cfg, RESUME_OVERRIDES)
+    state, cfg = resumed(resume, cfg, RESUME_OVERRIDES, STATE_KIND, "fine-tuning", "OUT/last.pt", "config")
+    if state is not None:
         fit = FitConfig(**state["fit_config"])
     run = RunConfig.of(cfg, out_dir, resume, max_epochs=cfg.epochs, backend=backend)
     weights = (sampler_weights, solver_weights, depth_weights)

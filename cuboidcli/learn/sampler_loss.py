@@ -41,23 +41,16 @@ from cuboidcli.solvers.base import CuboidSolver
 
 
 @dataclass(frozen=True)
-class LossParams:
-    """Settings of one instance's loss, with the paper's symbols (appendix Table 7)."""
+class LossSettings:
+    """The settings of the loss that a training config chooses (the others follow from the fitting config
+    and the epoch), with the paper's symbols (appendix Table 7)."""
 
     hypotheses: int = 32
     """|H|: hypotheses per sampled set during training."""
     samples_k: int = 2
     """K: hypothesis sets sampled per instance (>= 2 for a non-zero baseline-subtracted signal)."""
-    min_set: int = 6
-    """C: points per minimal set."""
     alpha: float = 10.0
     """alpha: softmax scale of the probabilistic selection, on gains in fractions of the points."""
-    tau_sq_m2: float = 0.004
-    """tau: inlier threshold on the squared distance, m^2."""
-    beta: float = 5.0
-    """beta: softness of f_I."""
-    tau_c_sq_m2: float = 1.0
-    """tau_c: where f_O turns linear, m^2 (follows :func:`occlusion_threshold` during training)."""
     loss_clamp: float = 0.3
     """Clamp of the baseline-subtracted task loss (the REINFORCE weight), fractions of the points."""
     kappa_corr: float = 1.0
@@ -71,6 +64,20 @@ class LossParams:
     """kappa_entropy: weight of the negative entropy of q."""
     kappa_im: float = 0.01
     """kappa_im: weight of the inlier masking regularisation."""
+
+
+@dataclass(frozen=True)
+class LossParams(LossSettings):
+    """Settings of one instance's loss: a training config's :class:`LossSettings` and those of the fit."""
+
+    min_set: int = 6
+    """C: points per minimal set."""
+    tau_sq_m2: float = 0.004
+    """tau: inlier threshold on the squared distance, m^2."""
+    beta: float = 5.0
+    """beta: softness of f_I."""
+    tau_c_sq_m2: float = 1.0
+    """tau_c: where f_O turns linear, m^2 (follows :func:`occlusion_threshold` during training)."""
 
 
 def occlusion_threshold(epoch: int, epochs: int, tau_sq_m2: float, start_sq_m2: float = 1.0) -> float:

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, fields, replace
 from pathlib import Path
 
 import numpy as np
@@ -56,16 +56,22 @@ from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
-from cuboidcli.learn.sampler_loss import CORR_MODES, LossParams, instance_loss, occlusion_threshold
+from cuboidcli.learn.sampler_loss import (
+    CORR_MODES,
+    LossParams,
+    LossSettings,
+    instance_loss,
+    occlusion_threshold,
+)
 from cuboidcli.learn.trainer import (
+    OneNetJob,
     Run,
     RunConfig,
+    RunFields,
     StepResult,
-    TrainingJob,
     Validation,
     batched,
-    read_state,
-    resumed_config,
+    resumed,
     run_job,
     shared_batch_step,
 )
@@ -92,11 +98,12 @@ def draw_seed(seed: int, rank: int = 0, epoch: int = 0) -> int:
 
 
 @dataclass(frozen=True)
-class SamplerSchedule:
+class SamplerSchedule(LossSettings, RunFields):
     """The settings a sampler training run (:class:`SamplerTrainConfig`) and a fine-tuning run
-    (:class:`cuboidcli.learn.finetune.FinetuneConfig`) share: the sampling-weight network's loss, the
-    frames, validation and the run. Defaults are the sampler trainer's; a subclass redeclares a field to
-    give it another default (and docstring)."""
+    (:class:`cuboidcli.learn.finetune.FinetuneConfig`) share: the sampling-weight network's loss
+    (:class:`~cuboidcli.learn.sampler_loss.LossSettings`), the frames, validation and the run
+    (:class:`~cuboidcli.learn.trainer.RunFields`). Defaults are the
+    sampler trainer's; a subclass redeclares a field to give it another default (and docstring)."""
 
     epochs: int = 25
     """N_e: epochs (also the length of the tau_c schedule)."""
@@ -108,31 +115,14 @@ class SamplerSchedule:
     default is 10x the paper's. Lower it (or use 1e-5) for long runs if the validation AUC oscillates."""
     batch: int = 2
     """B: scenes per optimizer step (over all processes)."""
-    hypotheses: int = 32
-    """|H|: hypotheses per sampled set."""
     instances: int = 8
     """|M|: sequential instances per scene."""
-    samples_k: int = 2
-    """K: hypothesis sets per instance (the baseline needs K >= 2)."""
-    alpha: float = 10.0
-    """alpha: selection softmax scale on gains in fractions of the points."""
-    kappa_corr: float = 1.0
-    """Weight of the map-correlation loss."""
     corr_mode: str = "positive"
-    """l_corr variant (see sampler_loss.LossParams.corr_mode); "paper" is the paper's plain sum."""
-    kappa_entropy: float = 1.0
-    kappa_im: float = 0.01
-    loss_clamp: float = 0.3
-    """Clamp of the baseline-subtracted task loss (see sampler_loss)."""
+    """l_corr variant (see sampler_loss.LossSettings.corr_mode); "paper" is the paper's plain sum."""
     scenes_per_epoch: int | None = None
     """Scenes per epoch; None = every training frame once (the paper used 500 random scenes for SMH)."""
     grid_step: int = 8
     """Fitting points: every n-th pixel (8: 60x80 of 480x640)."""
-    seed: int = 0
-    """Seeds the initial weights, the frame order of each epoch and every draw."""
-    threads: int = 1
-    """torch CPU threads."""
-    device: str = "cpu"
     workers: int = 1
     """Threads reading and preparing frames."""
     val_hypotheses: int = 256
@@ -141,8 +131,6 @@ class SamplerSchedule:
     """Validate on at most this many val frames (None = all)."""
     validate_initial: bool = True
     """Validate the untrained net before the first epoch (a reference point in the log)."""
-    max_minutes: float | None = None
-    """Stop after the epoch during which this much wall time (in this process) has passed."""
 
     def __post_init__(self) -> None:
         if self.corr_mode not in CORR_MODES:
@@ -165,19 +153,14 @@ class SamplerTrainConfig(SamplerSchedule):
     """epoch_XXX.pt files kept."""
 
     def loss_params(self, fit: FitConfig, epoch: int) -> LossParams:
+        """The loss of an instance in ``epoch``: this config's :class:`LossSettings`, ``fit``'s minimal set
+        and inlier function and the epoch's occlusion threshold."""
         return LossParams(
-            hypotheses=self.hypotheses,
-            samples_k=self.samples_k,
+            **{f.name: getattr(self, f.name) for f in fields(LossSettings)},
             min_set=fit.min_set,
-            alpha=self.alpha,
             tau_sq_m2=fit.tau_sq_m2,
             beta=fit.beta,
             tau_c_sq_m2=occlusion_threshold(epoch, self.epochs, fit.tau_sq_m2, self.tau_c_start_sq_m2),
-            loss_clamp=self.loss_clamp,
-            kappa_corr=self.kappa_corr,
-            corr_mode=self.corr_mode,
-            kappa_entropy=self.kappa_entropy,
-            kappa_im=self.kappa_im,
         )
 
 
@@ -303,11 +286,12 @@ def draw_states(gen: torch.Generator, ctx: DistContext) -> dict:
     return {"draw_rng": gen.get_state(), "draw_rngs": ctx.gather(gen.get_state())}
 
 
-class SamplerJob(TrainingJob):
+class SamplerJob(OneNetJob):
     """Training of the sampling-weight network as a job of :func:`~cuboidcli.learn.trainer.run_job`:
     epoch-based, B scenes a step split over the ranks, validated after every epoch."""
 
     name = "sampler"
+    net_name = "sampler"
     state_kind = STATE_KIND
     rate_key = "scenes_per_s"
 
@@ -352,8 +336,8 @@ class SamplerJob(TrainingJob):
 
         mean = shared_batch_step(run.ctx, self.optimizer, self.net.parameters(), batch, one)
         names = [self.scenes[i].name for i in batch]
-        fields = {"epoch": run.epoch + 1, "tau_c_sq_m2": lp.tau_c_sq_m2, "scenes": names}
-        return StepResult(mean, fields, items=len(batch))
+        step_fields = {"epoch": run.epoch + 1, "tau_c_sq_m2": lp.tau_c_sq_m2, "scenes": names}
+        return StepResult(mean, step_fields, items=len(batch))
 
     def validate(self, run: Run) -> Validation | None:
         if not self.val_frames:
@@ -361,17 +345,8 @@ class SamplerJob(TrainingJob):
         metrics, key, value = validate(self.net, self.val_frames, self.fit, self.cfg, run.ctx)
         return Validation(value, {"key": key, **metrics})
 
-    def state(self, run: Run) -> dict:
-        return {
-            "config": self.net_cfg.to_dict(),
-            "state_dict": self.net.state_dict(),
-            **draw_states(self.gen, run.ctx),
-            "train_config": asdict(self.cfg),
-            "fit_config": self.fit.to_dict(),
-        }
-
-    def networks(self) -> dict[str, torch.nn.Module]:
-        return {"sampler": self.net}
+    def more_state(self, run: Run) -> dict:
+        return {**draw_states(self.gen, run.ctx), "fit_config": self.fit.to_dict()}
 
     def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
         meta = {
@@ -436,10 +411,9 @@ def train_sampler(
     all equal when the replicas stayed in sync.
     """
     fit = fit or FitConfig()
-    state = None
-    if resume is not None:
-        state = read_state(resume, STATE_KIND, "sampler training", "last.pt or epoch_*.pt")
-        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
+    hint = "last.pt or epoch_*.pt"
+    state, cfg = resumed(resume, cfg, RESUME_OVERRIDES, STATE_KIND, "sampler training", hint)
+    if state is not None:
         net_cfg = SamplerNetConfig.from_dict(state["config"])
         fit = FitConfig(**state["fit_config"])
     run = RunConfig.of(

@@ -34,12 +34,11 @@ from cuboidcli.fitting.winner import values_one
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, prepare_scenes
 from cuboidcli.learn.trainer import (
+    OneNetJob,
     Run,
     RunConfig,
     StepResult,
-    TrainingJob,
-    read_state,
-    resumed_config,
+    resumed,
     run_job,
 )
 from cuboidcli.nets.checkpoint import checkpoint_dict
@@ -127,12 +126,13 @@ def record_loss(net: SamplerNet, prep: PreparedPoints, rec: SeedRecord, kappa: f
     return -(target * log_p).sum() + (target * torch.log(target.clamp_min(1e-30))).sum()  # KL(T || p)
 
 
-class SeedJob(TrainingJob):
+class SeedJob(OneNetJob):
     """The first-point map's training as a job of :func:`~cuboidcli.learn.trainer.run_job`: the seed scores
     are recorded in :meth:`setup` (again when resuming: they depend only on the seed), then each epoch
     visits every record once in a seeded random order. No validation: every epoch's weights are kept."""
 
     name = "seed"
+    net_name = "sampler"
     state_kind = STATE_KIND
     distributed = False
 
@@ -185,17 +185,8 @@ class SeedJob(TrainingJob):
     def validate(self, run: Run) -> None:
         return None
 
-    def state(self, run: Run) -> dict:
-        return {
-            "config": self.net_cfg.to_dict(),
-            "state_dict": self.net.state_dict(),
-            "order_rng": self.order_gen.get_state(),
-            "train_config": asdict(self.cfg),
-            "fit_config": self.fit.to_dict(),
-        }
-
-    def networks(self) -> dict[str, torch.nn.Module]:
-        return {"sampler": self.net}
+    def more_state(self, run: Run) -> dict:
+        return {"order_rng": self.order_gen.get_state(), "fit_config": self.fit.to_dict()}
 
     def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
         meta = {
@@ -235,10 +226,8 @@ def train_seed_sampler(
     weights path. ``resume``: a ``last.pt`` of this trainer; its settings apply except ``epochs`` and
     ``max_minutes`` of ``cfg``. ``max_minutes`` counts from the start, the recording included."""
     fit = fit or FitConfig()
-    state = None
-    if resume is not None:
-        state = read_state(resume, STATE_KIND, "seed-sampler training")
-        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
+    state, cfg = resumed(resume, cfg, RESUME_OVERRIDES, STATE_KIND, "seed-sampler training")
+    if state is not None:
         fit = FitConfig(**state["fit_config"])
     run = RunConfig.of(
         cfg, out_dir, resume, max_epochs=cfg.epochs, stop_within_epoch=True, log_every=None, threads=None

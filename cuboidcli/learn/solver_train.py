@@ -35,15 +35,15 @@ from torch import Tensor
 from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.learn.trainer import (
+    OneNetJob,
     Run,
     RunConfig,
+    RunFields,
     StepResult,
-    TrainingJob,
     Validation,
-    read_state,
-    resumed_config,
+    WarmupCosine,
+    resumed,
     run_job,
-    warmup_cosine_lr,
 )
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
 from cuboidcli.nets.solver import SolverNet, SolverNetConfig
@@ -62,8 +62,9 @@ RANK_SEED_STRIDE = 2**48
 
 
 @dataclass(frozen=True)
-class SolverTrainConfig:
-    """Optimisation schedule and bookkeeping of a pre-training run."""
+class SolverTrainConfig(WarmupCosine, RunFields):
+    """Optimisation schedule and bookkeeping of a pre-training run; Adam follows the :class:`WarmupCosine`
+    schedule."""
 
     iters: int = 50000
     """Optimizer steps (the paper: 150k at batch 4096 on a GPU)."""
@@ -71,17 +72,6 @@ class SolverTrainConfig:
     """Minimal sets per step and process: a run on N processes takes batch * N sets per step."""
     lr: float = 3e-3
     """Peak Adam learning rate: warm-up, then cosine decay (the paper: 1e-4, constant)."""
-    warmup: int = 500
-    """Linear warm-up steps from lr / warmup to lr."""
-    final_lr_ratio: float = 0.02
-    """The cosine decay ends at lr * final_lr_ratio."""
-    grad_clip: float = 1.0
-    """Max global gradient norm."""
-    seed: int = 0
-    """Seeds the initial weights and every training batch."""
-    threads: int = 1
-    """torch CPU threads (the machine's cores are shared)."""
-    device: str = "cpu"
     log_every: int = 50
     val_every: int = 1000
     """Validate and maybe write ``best.pt`` every so many steps (and at the end)."""
@@ -89,10 +79,6 @@ class SolverTrainConfig:
     keep_snapshots: int = 3
     val_sets: int = 4096
     """Sets in each held-out validation set (one clean, one with noise and outliers)."""
-    max_minutes: float | None = None
-    """Time budget, minutes of training wall time summed over resumed sessions. The cosine decay then
-    follows whichever budget is used up faster, steps or time, and the run ends when either is spent
-    (with a validation and a checkpoint). Such a run depends on the machine's speed: not bit-exact."""
 
 
 def set_sq_distances(points: Tensor, centers: Tensor, half_sizes: Tensor, rotations: Tensor) -> Tensor:
@@ -116,14 +102,6 @@ def solver_loss(net: SolverNet, points: Tensor, inlier: Tensor) -> Tensor:
 def batch_seed(seed: int, it: int, rank: int = 0) -> int:
     """Seed of the training batch of step ``it`` (0-based) on ``rank``; rank 0 is the single-process one."""
     return seed * 2**32 + it + rank * RANK_SEED_STRIDE
-
-
-def lr_at(it: int, cfg: SolverTrainConfig, time_fraction: float = 0.0) -> float:
-    """Learning rate of step ``it`` (0-based): linear warm-up, then cosine down to final_lr_ratio * lr.
-
-    ``time_fraction``: share of the time budget used so far; the decay follows it when it runs ahead.
-    """
-    return warmup_cosine_lr(it, cfg.iters, cfg.lr, cfg.warmup, cfg.final_lr_ratio, time_fraction)
 
 
 def validation_sets(n: int, data: SyntheticConfig) -> dict[str, SyntheticBatch]:
@@ -156,11 +134,12 @@ def _net_solver(net: SolverNet) -> Callable:
     return NeuralSolver(net=net, device=next(net.parameters()).device)
 
 
-class SolverJob(TrainingJob):
+class SolverJob(OneNetJob):
     """Pre-training of the neural solver as a job of :func:`~cuboidcli.learn.trainer.run_job`: step-based,
     one synthetic batch a step; rank 0 alone validates (on the fixed held-out sets)."""
 
     name = "solver"
+    net_name = "solver"
     state_kind = STATE_KIND
     step_event = "train"
     end_event = "done"
@@ -185,7 +164,7 @@ class SolverJob(TrainingJob):
 
             device_ids = [device.index] if device.type == "cuda" else None
             self.model = DistributedDataParallel(self.net, device_ids=device_ids)
-        self.optimizer = torch.optim.Adam(self.net.parameters(), lr=lr_at(0, self.cfg))
+        self.optimizer = torch.optim.Adam(self.net.parameters(), lr=self.cfg.lr_at(0, self.cfg.iters))
         # Only rank 0 validates; the others wait for it in the next collective.
         self.val = validation_sets(self.cfg.val_sets, self.data_cfg) if ctx.is_main else {}
         self.net.train()
@@ -197,7 +176,7 @@ class SolverJob(TrainingJob):
         cfg = self.cfg
         batch = seeded_batch(cfg.batch, self.data_cfg, batch_seed(cfg.seed, it, run.ctx.rank))
         points, inlier = batch.points.to(run.device), batch.inlier.to(run.device)
-        lr = lr_at(it, cfg, run.time_fraction())
+        lr = cfg.lr_at(it, cfg.iters, run.time_fraction())
         for group in self.optimizer.param_groups:
             group["lr"] = lr
         loss = solver_loss(self.model, points, inlier)
@@ -219,16 +198,8 @@ class SolverJob(TrainingJob):
         flat = {f"{k}_{m}": v for k, ms in self.metrics.items() for m, v in ms.items()}
         return Validation(self.metrics["noisy"]["msd_m2"], {"iteration": run.step, **flat})
 
-    def state(self, run: Run) -> dict:
-        return {
-            "config": self.net_cfg.to_dict(),
-            "state_dict": self.net.state_dict(),
-            "train_config": asdict(self.cfg),
-            "data_config": self.data_cfg.to_dict(),
-        }
-
-    def networks(self) -> dict[str, torch.nn.Module]:
-        return {"solver": self.net}
+    def more_state(self, run: Run) -> dict:
+        return {"data_config": self.data_cfg.to_dict()}
 
     def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
         meta = {
@@ -286,10 +257,9 @@ def train_solver(
     it on all of them). The final record holds ``world_size`` and ``param_sha256``, one hash of the final
     weights per rank, all equal when the replicas stayed in sync.
     """
-    state = None
-    if resume is not None:
-        state = read_state(resume, STATE_KIND, "solver training", "last.pt or step_*.pt")
-        cfg = resumed_config(state["train_config"], cfg, RESUME_OVERRIDES)
+    hint = "last.pt or step_*.pt"
+    state, cfg = resumed(resume, cfg, RESUME_OVERRIDES, STATE_KIND, "solver training", hint)
+    if state is not None:
         net_cfg = SolverNetConfig.from_dict(state["config"])
         data_cfg = SyntheticConfig(**state["data_config"])
     run = RunConfig.of(

@@ -2,8 +2,10 @@
 
 A job says what is particular to it: its data, networks and optimizer (:meth:`~TrainingJob.setup`), one
 optimizer step (:meth:`~TrainingJob.step`, on the items :meth:`~TrainingJob.batches` yields), validation
-(:meth:`~TrainingJob.validate`) and what it adds to the training state (:meth:`~TrainingJob.state`). A
-:class:`RunConfig` says where and how long. The loop does the rest, the same way for every job:
+(:meth:`~TrainingJob.validate`) and what it adds to the training state (:meth:`~TrainingJob.state`); a
+job that trains one network derives from :class:`OneNetJob`. A :class:`RunConfig` says where and how
+long (the trainers' configs share the fields it takes over, :class:`RunFields`, and their learning-rate
+schedule, :class:`WarmupCosine`). The loop does the rest, the same way for every job:
 
 - **Processes.** It joins the ``torchrun`` process group for the run (:mod:`cuboidcli.learn.distributed`)
   and sets torch's thread count, restoring it afterwards. Every rank runs the job's steps and validations
@@ -37,7 +39,7 @@ import re
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
 from typing import ClassVar, TypeVar
 
@@ -47,7 +49,7 @@ import torch
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.io.checkpoints import read_checkpoint
 from cuboidcli.learn.distributed import DistContext, distributed, launched_world_size, state_sha256
-from cuboidcli.nets.checkpoint import parameter_count
+from cuboidcli.nets.checkpoint import NetConfig, parameter_count
 
 LAST = "last.pt"
 """The training state a run resumes from."""
@@ -129,6 +131,51 @@ class RunConfig:
     def snapshot_glob(self) -> str:
         """The snapshots' file names as a glob pattern (``epoch_*.pt``)."""
         return re.sub(r"\{[^}]*\}", "*", self.snapshot_name)
+
+
+@dataclass(frozen=True)
+class RunFields:
+    """The fields of a trainer's config that :meth:`RunConfig.of` takes over into its run: the seed, where
+    the steps run and the time budget. A config redeclares a field to give it another default."""
+
+    seed: int = 0
+    """Seeds the initial weights (of a network trained from scratch) and every random draw of the run: the
+    order of the data, the batches, augmentation, hypotheses."""
+    threads: int = 1
+    """torch CPU threads (the machine's cores are shared)."""
+    device: str = "cpu"
+    """torch device of the training steps."""
+    max_minutes: float | None = None
+    """Time budget, minutes of training wall time; the run then ends with a validation and a checkpoint.
+    Solver and depth training sum the sessions of a resumed run and their cosine decay follows the budget
+    when it runs ahead (not bit-exact then); sampler training and fine-tuning count this session and stop
+    after the epoch in which it ran out."""
+
+
+@dataclass(frozen=True)
+class WarmupCosine:
+    """The learning-rate schedule of a trainer's config: a linear warm-up to ``lr``, then a cosine decay to
+    ``lr * final_lr_ratio``, with the gradients clipped to a global norm. A config redeclares a field to
+    give it another default."""
+
+    lr: float = 1e-3
+    """Peak learning rate: warm-up, then cosine decay."""
+    warmup: int = 500
+    """Linear warm-up steps from lr / warmup to lr."""
+    final_lr_ratio: float = 0.02
+    """The cosine decay ends at lr * final_lr_ratio."""
+    grad_clip: float = 1.0
+    """Max global gradient norm."""
+
+    def lr_at(self, step: int, total: int, time_fraction: float = 0.0) -> float:
+        """The learning rate of step ``step`` (0-based) of ``total``: the warm-up over ``warmup`` steps,
+        then the cosine decay, which follows the time budget (``time_fraction``, the share used) when that
+        runs out first."""
+        if step < self.warmup:
+            return self.lr * (step + 1) / self.warmup
+        progress = min(1.0, max((step - self.warmup) / max(1, total - self.warmup), time_fraction))
+        ratio = self.final_lr_ratio
+        return self.lr * (ratio + (1.0 - ratio) * 0.5 * (1.0 + math.cos(math.pi * progress)))
 
 
 @dataclass
@@ -223,6 +270,34 @@ class TrainingJob(ABC):
         return None
 
 
+class OneNetJob(TrainingJob):
+    """A job that trains one network, :attr:`net` (built from :attr:`net_cfg`), under the trainer's config
+    dataclass :attr:`cfg`. Its training state holds the net's config (``config``) and weights
+    (``state_dict``) and the trainer's config (``train_config``) besides the entries of
+    :meth:`more_state`."""
+
+    net_name: ClassVar[str]
+    """The network's name in :meth:`networks`."""
+    cfg: object
+    """The trainer's config (a dataclass)."""
+    net: torch.nn.Module
+    """Set by :meth:`setup`."""
+    net_cfg: NetConfig
+    """The net's config (set by :meth:`setup` at the latest)."""
+
+    @abstractmethod
+    def more_state(self, run: Run) -> dict:
+        """The job's entries of the training state besides the net and the configs (its generators, the
+        configs of its data and fitting)."""
+
+    def state(self, run: Run) -> dict:
+        own = {"config": self.net_cfg.to_dict(), "state_dict": self.net.state_dict()}
+        return {**own, **self.more_state(run), "train_config": asdict(self.cfg)}
+
+    def networks(self) -> dict[str, torch.nn.Module]:
+        return {self.net_name: self.net}
+
+
 def read_state(path: str | Path, kind: str, what: str, hint: str = LAST) -> dict:
     """The training state stored at ``path``, with the keys of older files renamed
     (:data:`LEGACY_STATE_KEYS`); ValueError naming ``what`` and ``hint`` when it holds something else."""
@@ -235,10 +310,23 @@ def read_state(path: str | Path, kind: str, what: str, hint: str = LAST) -> dict
     return state
 
 
-def resumed_config(saved: dict, given: Config, keep: Iterable[str]) -> Config:
-    """The config a resumed run goes on with: the checkpoint's (``saved``, a dict of the dataclass type of
-    ``given``) with the fields ``keep`` taken from ``given``."""
-    return replace(type(given)(**saved), **{k: getattr(given, k) for k in keep})
+def resumed(
+    resume: str | Path | None,
+    given: Config,
+    keep: Iterable[str],
+    kind: str,
+    what: str,
+    hint: str = LAST,
+    key: str = "train_config",
+) -> tuple[dict | None, Config]:
+    """What a trainer called with ``resume`` goes on from: the training state stored there
+    (:func:`read_state` of ``kind``, ``what`` and ``hint``) and the config of the checkpoint (its entry
+    ``key``, a dict of the dataclass type of ``given``) with the fields ``keep`` taken from ``given``.
+    A fresh run (``resume`` None): None and ``given``."""
+    if resume is None:
+        return None, given
+    state = read_state(resume, kind, what, hint)
+    return state, replace(type(given)(**state[key]), **{k: getattr(given, k) for k in keep})
 
 
 def params_sha256(networks: dict[str, torch.nn.Module]) -> str:
@@ -510,18 +598,6 @@ def run_job(
             return Run(cfg, ctx, job, on_event or (lambda record: None)).train(state)
     finally:
         torch.set_num_threads(threads_before)
-
-
-def warmup_cosine_lr(
-    step: int, total: int, lr: float, warmup: int, final_ratio: float, time_fraction: float = 0.0
-) -> float:
-    """The learning rate of step ``step`` (0-based) of ``total``: a linear warm-up over ``warmup`` steps,
-    then a cosine decay to ``final_ratio * lr`` that follows the time budget (``time_fraction``, the share
-    used) when that runs out first."""
-    if step < warmup:
-        return lr * (step + 1) / warmup
-    progress = min(1.0, max((step - warmup) / max(1, total - warmup), time_fraction))
-    return lr * (final_ratio + (1.0 - final_ratio) * 0.5 * (1.0 + math.cos(math.pi * progress)))
 
 
 def shared_batch_step(

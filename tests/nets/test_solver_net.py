@@ -10,7 +10,6 @@ import torch
 from cuboidcli.geometry.kernels import SIDE_AXIS, SIDE_SIGN
 from cuboidcli.learn.solver_train import (
     SolverTrainConfig,
-    lr_at,
     set_sq_distances,
     solver_loss,
     train_solver,
@@ -170,14 +169,14 @@ def test_noise_and_outliers_are_seeded_and_flagged():
 
 def test_lr_schedule():
     cfg = SolverTrainConfig(iters=100, warmup=10, lr=1e-3, final_lr_ratio=0.1)
-    assert lr_at(0, cfg) == pytest.approx(1e-4)
-    assert lr_at(9, cfg) == pytest.approx(1e-3)
-    assert lr_at(99, cfg) == pytest.approx(1e-4, rel=1e-2)
-    assert all(lr_at(i, cfg) >= lr_at(i + 1, cfg) for i in range(10, 99))
+    assert cfg.lr_at(0, cfg.iters) == pytest.approx(1e-4)
+    assert cfg.lr_at(9, cfg.iters) == pytest.approx(1e-3)
+    assert cfg.lr_at(99, cfg.iters) == pytest.approx(1e-4, rel=1e-2)
+    assert all(cfg.lr_at(i, cfg.iters) >= cfg.lr_at(i + 1, cfg.iters) for i in range(10, 99))
     # With a time budget the decay follows the budget when it runs ahead of the steps.
-    assert lr_at(20, cfg, time_fraction=1.0) == pytest.approx(1e-4)
-    assert lr_at(20, cfg, time_fraction=0.0) == lr_at(20, cfg)
-    assert lr_at(5, cfg, time_fraction=0.9) == lr_at(5, cfg)  # warm-up is by steps
+    assert cfg.lr_at(20, cfg.iters, time_fraction=1.0) == pytest.approx(1e-4)
+    assert cfg.lr_at(20, cfg.iters, time_fraction=0.0) == cfg.lr_at(20, cfg.iters)
+    assert cfg.lr_at(5, cfg.iters, time_fraction=0.9) == cfg.lr_at(5, cfg.iters)  # warm-up is by steps
 
 
 def test_training_reduces_loss_on_a_fixed_batch():
