@@ -3,6 +3,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
@@ -41,6 +42,16 @@ def simple_room() -> list[Cuboid]:
         Cuboid([1.2, 0.9, 3.9], [0.4, 0.5, 0.3], eye, extras={"category": "cabinet"}),
         Cuboid([-0.5, 1.1, 3.0], [0.5, 0.3, 0.4], yaw(0.4), extras={"category": "box"}),
     ]
+
+
+@pytest.fixture()
+def one_thread():
+    """torch on one thread for the test (``pytestmark = pytest.mark.usefixtures("one_thread")``): tiny
+    networks run fastest so, and two threads crawl when the CPU is shared."""
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
 
 
 @pytest.fixture(scope="session")

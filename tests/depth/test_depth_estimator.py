@@ -23,12 +23,7 @@ TINY = DepthNetConfig(channels=(4, 8, 8, 8, 8), input_height=32, input_width=48,
 CAMERA = Camera(fx=80.0, fy=80.0, cx=39.5, cy=29.5, width=80, height=60)
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 @pytest.fixture()

@@ -15,11 +15,9 @@ import cv2
 import h5py
 import numpy as np
 import pytest
-import typer
 from typer.testing import CliRunner
 
 from cuboidcli.camera import Camera
-from cuboidcli.cli.evaluate import register
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.nyu import list_nyu_frames, read_mat_v5, read_splits
 from cuboidcli.evaluation.outputs import weights_hashes
@@ -64,18 +62,6 @@ def folder(tmp_path_factory) -> Path:
     root = tmp_path_factory.mktemp("data")
     make_folder(root)
     return root
-
-
-@pytest.fixture(scope="module")
-def app() -> typer.Typer:
-    app = typer.Typer()
-
-    @app.callback()
-    def main() -> None:  # keeps `evaluate` a subcommand
-        pass
-
-    register(app)
-    return app
 
 
 def metrics_json(out: Path) -> dict:

@@ -9,11 +9,9 @@ import math
 
 import numpy as np
 import pytest
-import typer
 from typer.testing import CliRunner
 
 from cuboidcli.camera import Camera
-from cuboidcli.cli.evaluate import register
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.metrics import aggregate, frame_metrics, gravity_summary, shape_summary
 from cuboidcli.evaluation.runner import EvalSettings, evaluate, load_frames
@@ -320,18 +318,6 @@ def test_saved_gravity_entries_are_read():
     assert g.frame is None
     assert gravity_from_saved(None) is None and gravity_from_saved({"down": [0, 0, 0]}) is None
     assert gravity_from_saved({"down": "x"}) is None
-
-
-@pytest.fixture(scope="module")
-def app() -> typer.Typer:
-    app = typer.Typer()
-
-    @app.callback()
-    def main() -> None:  # keeps `evaluate` a subcommand
-        pass
-
-    register(app)
-    return app
 
 
 def test_cli_reports_shape_metrics_of_exact_fits_on_synthetic_frames(app, tmp_path):

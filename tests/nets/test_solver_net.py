@@ -23,13 +23,7 @@ from cuboidcli.solvers.synthetic import SyntheticConfig, sample_batch, seeded_ba
 TINY = SolverNetConfig(width=16, layers=1, heads=2, ff=32)
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Tiny nets run fastest on one thread, and two threads crawl when the CPU is shared."""
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def tiny_net(seed: int = 0) -> SolverNet:

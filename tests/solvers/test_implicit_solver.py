@@ -20,12 +20,7 @@ from cuboidcli.solvers.numerical import NumericalSolver
 F64 = torch.float64
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 def box_on_three_faces(per_face: int, seed: int = 0, dtype=F64):

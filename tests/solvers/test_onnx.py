@@ -23,12 +23,7 @@ pytest.importorskip("onnxruntime")
 TINY = SolverNetConfig(width=16, layers=1, heads=2, ff=32)
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
+pytestmark = pytest.mark.usefixtures("one_thread")
 
 
 @pytest.fixture(scope="module")
