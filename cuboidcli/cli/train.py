@@ -135,3 +135,6 @@ _train_finetune.register(train_app)
 from cuboidcli.cli import train_depth as _train_depth  # noqa: E402
 
 _train_depth.register(train_app)
+from cuboidcli.cli import train_seed as _train_seed  # noqa: E402
+
+_train_seed.register(train_app)

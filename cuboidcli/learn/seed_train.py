@@ -62,15 +62,22 @@ class SeedTrainConfig:
     kappa: float = 5.0
     """Sharpness of the target: a seed reaching the step's best gain is exp(kappa) times as likely."""
     epochs: int = 4
+    """Passes over the recorded seed scores."""
     lr: float = 1e-3
+    """Adam learning rate."""
     width: int = 48
+    """Channels of the network's convolutions."""
     blocks: int = 4
+    """Residual blocks of the network."""
     upsample: int = 1
     """The network runs on the fitting grid itself (1) or on it upsampled (see SamplerNetConfig)."""
     scenes: int | None = None
     """Training scenes used (None = all)."""
     seed: int = 0
+    """Seeds the initial weights, the hypotheses drawn while recording and the order of the records."""
     max_minutes: float | None = None
+    """Time budget in minutes, counted from the start (the recording included); the run then ends with
+    the weights of its last finished epoch."""
 
 
 @dataclass

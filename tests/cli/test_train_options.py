@@ -25,7 +25,7 @@ def train_commands() -> dict:
 
 def test_every_train_command_names_its_configs():
     commands = train_commands()
-    assert set(commands) == {"solver", "sampler", "finetune", "depth"}
+    assert set(commands) == {"solver", "sampler", "finetune", "depth", "seed"}
     for name, command in commands.items():
         assert command.configs, name
 
@@ -63,3 +63,17 @@ def test_options_named_after_fields_reach_the_config(monkeypatch, tmp_path):
     call_with_defaults(command, data=data, out=tmp_path / "out", tau_c_start_sq_m2=0.008, width=16, lr=3e-5)
     assert seen["cfg"].tau_c_start_sq_m2 == 0.008 and seen["cfg"].lr == 3e-5
     assert seen["net_cfg"].width == 16 and seen["net_cfg"].prior == "unexplained"
+
+
+def test_the_seed_command_builds_its_config_from_its_options(monkeypatch, tmp_path):
+    """``cuboids train seed`` (the first-point sampler, models/sampler_v3.pt) passes its options to
+    SeedTrainConfig by name."""
+    import cuboidcli.learn.seed_train as seed_train
+    from cuboidcli.cli.options import call_with_defaults
+
+    seen = {}
+    monkeypatch.setattr(seed_train, "train_seed_sampler", lambda data, out, cfg, **kw: seen.update(cfg=cfg))
+    data = tmp_path / "data"
+    data.mkdir()
+    call_with_defaults(train_commands()["seed"], data=data, out=tmp_path / "out", scenes=240, kappa=2.0)
+    assert seen["cfg"] == seed_train.SeedTrainConfig(scenes=240, kappa=2.0)

@@ -15,7 +15,10 @@ TRAINERS = {
     "sampler": ("cuboidcli.learn.sampler_train", "train_sampler", True),
     "finetune": ("cuboidcli.learn.finetune", "finetune", True),
     "depth": ("cuboidcli.learn.depth_train", "train_depth", True),
+    "seed": ("cuboidcli.learn.seed_train", "train_seed_sampler", True),
 }
+#: Commands without --device (the first-point sampler trains on the CPU).
+CPU_ONLY = {"seed"}
 
 
 def _run(command: str, tmp_path, monkeypatch, trainer, *more: str):
@@ -25,7 +28,8 @@ def _run(command: str, tmp_path, monkeypatch, trainer, *more: str):
     monkeypatch.setattr(importlib.import_module(module), name, trainer)
     data = tmp_path / "data"
     data.mkdir(exist_ok=True)
-    args = ["train", command, *([str(data)] if takes_data else []), "--device", "cpu", *more]
+    device = [] if command in CPU_ONLY else ["--device", "cpu"]
+    args = ["train", command, *([str(data)] if takes_data else []), *device, *more]
     return CliRunner().invoke(app, args)
 
 
