@@ -83,7 +83,11 @@ def corpus(tmp_path_factory, nyu_camera) -> Path:
     }.items():
         (root / name).write_text(json.dumps(doc))
     (root / "not_json.json").write_text("{'schema': ")
+    (root / "binary.json").write_bytes(b'{"fx": 5\n\xd0\xcf\x11\xe0' + bytes(range(256)))
     write_room_dataset(root / "dataset", nyu_camera.scaled(0.25))
+    for name, splits in (("bad_splits", b"\x89PNG\r\n"), ("list_splits", b'["a", "b"]')):
+        write_room_dataset(root / name, nyu_camera.scaled(0.25))
+        (root / name / "splits.json").write_bytes(splits)
     return root
 
 
@@ -151,6 +155,23 @@ CASES = {
     "centre as a string": (EXPORT, "'cuboids[0].center' must be 3", "string_center.json"),
     "result is a list": (EXPORT, "holds a JSON list", "list.json"),
     "result is not JSON": (EXPORT, "not valid JSON", "not_json.json"),
+    "result is a binary file": (EXPORT, "not UTF-8 text", "binary.json"),
+    "intrinsics in a binary file": (
+        ["fit", "--depth", "{sample}/sample_depth.png", "-K", "{c}/binary.json"],
+        "binary.json is not valid JSON (not UTF-8 text (byte 0xd0) at line 2)",
+    ),
+    "evaluate, splits.json not JSON": (
+        ["evaluate", "{c}/bad_splits", "--split", "test", "-o", "{out}/eval"],
+        "splits.json is not valid JSON (not UTF-8 text",
+    ),
+    "evaluate, splits.json a list": (
+        ["evaluate", "{c}/list_splits", "--split", "test", "-o", "{out}/eval"],
+        "splits.json must map split names to lists of frame names",
+    ),
+    "train sampler, splits.json not JSON": (
+        ["train", "sampler", "{c}/bad_splits", "--out", "{out}/run"],
+        "splits.json is not valid JSON",
+    ),
     # evaluate and the trainers
     "evaluate with an object in the weights": (
         ["evaluate", "{c}/dataset", "--sampler", "learned", "--weights", "{c}/object.pt", "-o", "{out}/eval"],

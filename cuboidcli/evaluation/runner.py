@@ -24,6 +24,7 @@ from cuboidcli.evaluation.outputs import weights_hashes
 from cuboidcli.evaluation.shape import Reference, gravity_from_saved, synthetic_reference
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.gravity import Gravity
+from cuboidcli.io.dataset import read_splits
 from cuboidcli.io.depth import InputError
 from cuboidcli.io.result import read_result, write_result
 from cuboidcli.scaleout import Outcome, Summary, failed, run_tasks
@@ -171,12 +172,10 @@ def load_frames(
 
 def _missing_split_frames(root: Path, split: str | None, frames: list) -> list[MissingFrame]:
     """Frames that the split of ``splits.json`` names but the folder has no depth map for."""
-    import json
-
-    if split is None or not (root / "splits.json").is_file():
+    if split is None:
         return []
     have = {f.name for f in frames}
-    names = json.loads((root / "splits.json").read_text(encoding="utf-8")).get(split, [])
+    names = read_splits(root).get(split, [])
     return [MissingFrame(str(n), root) for n in dict.fromkeys(names) if str(n) not in have]
 
 

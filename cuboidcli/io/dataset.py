@@ -19,7 +19,6 @@ A flat folder with ``<name>_depth.png`` and ``<name>_rgb.(png|jpg)`` next to ``c
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -108,6 +107,18 @@ def _load_cameras(root: Path) -> tuple[dict[str, dict], dict | None]:
     return per_frame, shared
 
 
+def read_splits(root: Path) -> dict[str, list[str]]:
+    """The splits of a dataset folder (its ``splits.json``: split name -> frame names); {} without one.
+    InputError, naming the file, when it is not JSON or not of that shape."""
+    path = Path(root) / "splits.json"
+    if not path.is_file():
+        return {}
+    d = read_json(path, InputError, "{path} is not valid JSON ({e.msg} at line {e.lineno})")
+    if not isinstance(d, dict) or not all(isinstance(v, list) for v in d.values()):
+        raise InputError(f'{path} must map split names to lists of frame names ({{"train": [...], ...}})')
+    return {str(k): [str(n) for n in v] for k, v in d.items()}
+
+
 def _find(folder: Path, stem: str, suffixes) -> Path | None:
     for s in suffixes:
         p = folder / f"{stem}{s}"
@@ -159,10 +170,9 @@ def list_frames(root: str | os.PathLike, split: str | None = None) -> list[Frame
             )
         )
     if split is not None:
-        sp = root / "splits.json"
-        if not sp.is_file():
+        if not (root / "splits.json").is_file():
             raise InputError(f"--split {split}: {root} has no splits.json")
-        splits = json.loads(sp.read_text(encoding="utf-8"))
+        splits = read_splits(root)
         if split not in splits:
             raise InputError(f"--split {split}: splits.json has only {', '.join(splits)}")
         wanted = set(splits[split])

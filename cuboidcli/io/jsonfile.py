@@ -16,12 +16,19 @@ def read_json(
     """The parsed contents of the JSON file ``path``.
 
     Text that is not JSON raises ``error`` with the message ``invalid``, a format string over ``path`` and
-    the decoder's error ``e`` (``{e.msg}``, ``{e.lineno}``...). With ``missing`` given, a missing file
-    raises ``missing_error`` (default: ``error``) with that message, a format string over ``path``.
+    the decoder's error ``e`` (``{e.msg}``, ``{e.lineno}``...); so does a file that is not UTF-8 text (a
+    binary file), with ``e.msg`` saying so and ``e.lineno`` the line of the first bad byte. With
+    ``missing`` given, a missing file raises ``missing_error`` (default: ``error``) with that message, a
+    format string over ``path``.
     """
     if missing is not None and not path.is_file():
         raise (missing_error or error)(missing.format(path=path))
+    raw = path.read_bytes()
     try:
-        return json.loads(path.read_text(encoding="utf-8"))
+        return json.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError as u:
+        before = raw[: u.start].decode("utf-8", errors="replace")
+        e = json.JSONDecodeError(f"not UTF-8 text (byte 0x{raw[u.start]:02x})", before, len(before))
+        raise error(invalid.format(path=path, e=e)) from u
     except json.JSONDecodeError as e:
         raise error(invalid.format(path=path, e=e)) from e

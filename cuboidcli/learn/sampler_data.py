@@ -7,7 +7,6 @@ for validation, and with fewer than ten frames all of them serve for both.
 
 from __future__ import annotations
 
-import json
 import math
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
@@ -16,7 +15,7 @@ from pathlib import Path
 import torch
 
 from cuboidcli.fitting.pipeline import PreparedPoints, prepare_points
-from cuboidcli.io.dataset import Frame, list_frames
+from cuboidcli.io.dataset import Frame, list_frames, read_splits
 
 
 @dataclass
@@ -39,8 +38,8 @@ def dataset_splits(root: str | Path) -> tuple[list[Frame], list[Frame], str]:
     if is_nyu_folder(root):
         return list_nyu_frames(root, "train"), list_nyu_frames(root, "val"), "NYU Depth v2 splits.mat"
     frames = list_frames(root)
-    if (root / "splits.json").is_file():
-        splits = json.loads((root / "splits.json").read_text(encoding="utf-8"))
+    splits = read_splits(root)
+    if splits:
         train = [f for f in frames if f.name in set(splits.get("train", []))]
         val = [f for f in frames if f.name in set(splits.get("val", []))]
         if train:
