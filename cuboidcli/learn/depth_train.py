@@ -16,8 +16,10 @@ sees), and colour jitter (brightness, contrast, saturation).
 The loop is :func:`cuboidcli.learn.trainer.run_job`'s (:class:`DepthJob`: epoch-based, one process).
 Files in ``out_dir``: ``config.json``, ``log.jsonl`` (one record per logged step, validation and epoch),
 ``last.pt`` (training state: weights, optimizer, generator state, epoch; resume with it) and ``best.pt``
-(weights-only checkpoint with the lowest validation AbsRel). The library prints nothing; progress goes
-to ``on_event``. The command line is ``cuboids train depth`` (:mod:`cuboidcli.cli.train_depth`).
+(weights-only checkpoint with the lowest validation AbsRel; the same file as ``depth_v2.pt`` too, the
+name a weights folder holds the depth network under, :data:`cuboidcli.weights.FILES`). The library
+prints nothing; progress goes to ``on_event``. The command line is ``cuboids train depth``
+(:mod:`cuboidcli.cli.train_depth`).
 """
 
 from __future__ import annotations
@@ -47,6 +49,7 @@ from cuboidcli.learn.trainer import (
 )
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
 from cuboidcli.nets.depth import DepthNet, DepthNetConfig
+from cuboidcli.weights import FILES
 
 
 @dataclass(frozen=True)
@@ -260,7 +263,8 @@ class DepthJob(OneNetJob):
             "data": str(self.data),
             "elapsed_s": run.elapsed(),
         }
-        return {BEST: checkpoint_dict(self.net, meta)}
+        weights = checkpoint_dict(self.net, meta)
+        return {BEST: weights, FILES["depth"]: weights}
 
     def settings(self, run: Run) -> dict:
         settings = {"data": str(self.data), "train": asdict(self.cfg), "net": self.net_cfg.to_dict()}

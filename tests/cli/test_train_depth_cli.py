@@ -65,6 +65,9 @@ def test_trains_resumes_and_extends(app, dataset, tmp_path):
     assert result.exit_code == 0, result.output
     for name in ("best.pt", "last.pt", "log.jsonl", "config.json"):
         assert (out / name).is_file(), name
+    best, named = (torch.load(out / name, weights_only=True) for name in ("best.pt", "depth_v2.pt"))
+    assert best["state_dict"].keys() == named["state_dict"].keys()  # depth_v2.pt: a weights folder's name
+    assert all(torch.equal(best["state_dict"][k], named["state_dict"][k]) for k in best["state_dict"])
     text = result.output
     assert "train / 1 val frames" in text and "epoch 1/1 step 2/2: loss" in text and "images/s" in text
     assert "val epoch 1/1: AbsRel" in text and "RMSE" in text and "delta<1.25" in text and "*best*" in text
