@@ -9,7 +9,9 @@ refinement of a winner. :func:`backend_for` picks one from a name ("auto", "numb
 (:func:`cuboidcli.fitting.pipeline.fit_points`) does so once and hands it to every step.
 
 Both backends compute in float64 and agree to about 1e-12 per value; the same seed draws the same random
-numbers on both, so they select the same cuboids up to rounding.
+numbers on both, so they select the same hypotheses up to rounding. Rounding can still decide a near-tie
+while a winner is refined or grown (two boxes whose gains differ in the first decimal), and from there
+the two fits part: same quality, other cuboids.
 
 **Values and gains** (:class:`ScoreParams`): the torch reference kernels (:func:`values_torch`,
 :func:`gains_torch`, any device, in chunks of hypotheses) and the fused numba loop (:func:`gains_cpu`, numpy
