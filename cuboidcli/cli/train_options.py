@@ -5,7 +5,8 @@ field's default and, as help, the first paragraph of its docstring (:func:`train
 :mod:`cuboidcli.cli.options` does for FitConfig); the options every trainer has (``--out``, ``--seed``,
 ``--device``, ...) are one function each; :func:`config_of` turns a command's options into a config.
 ``tests/cli/test_train_options.py`` holds the training commands to this. A module of its own, so that
-``cuboids fit`` never loads the training package.
+the modules of ``cuboids fit`` (cli/fit.py, cli/options.py) do not depend on the training package; the
+``cuboids`` program still imports it when it registers the train commands.
 """
 
 from __future__ import annotations
