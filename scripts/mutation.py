@@ -82,6 +82,7 @@ TARGETS = (
             "tests/fitting/test_scoring.py",
             "tests/geometry/test_fused.py",
             "tests/fitting/test_pipeline.py",
+            "tests/learn/test_seed_sampler.py",
         ),
     ),
 )
