@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib
 import os
 import sys
 
@@ -30,6 +31,13 @@ def _is_cli_exception(exc: BaseException) -> bool:
     )
 
 
+#: Subcommand groups whose modules are imported only when the group is asked for (its commands, or the
+#: list of all commands for ``cuboids --help``): the train commands take their options from the training
+#: configs, and importing them for every command would load the training package for ``cuboids fit`` too.
+#: Each module has ``group()``, the group as a click command.
+LAZY_GROUPS = {"train": "cuboidcli.cli.train"}
+
+
 class CuboidsGroup(TyperGroup):
     """The top-level command group: quiet libraries, and one line instead of a traceback for a bug.
 
@@ -37,7 +45,16 @@ class CuboidsGroup(TyperGroup):
     Ctrl-C) pass through; a closed output pipe ends the command quietly (status 1); any other exception
     is an internal error: its traceback goes to a file
     (:func:`report_crash`) and the command exits with status 1, unless ``--debug`` asks to see it.
+    The groups of :data:`LAZY_GROUPS` are built when first asked for.
     """
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return [*super().list_commands(ctx), *(name for name in LAZY_GROUPS if name not in self.commands)]
+
+    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name in LAZY_GROUPS and name not in self.commands:
+            self.add_command(importlib.import_module(LAZY_GROUPS[name]).group(), name)
+        return super().get_command(ctx, name)
 
     def invoke(self, ctx: click.Context):
         if not _debug(ctx):
@@ -107,9 +124,7 @@ _evaluate.register(app)
 from cuboidcli.cli import synth as _synth  # noqa: E402
 
 _synth.register(app)
-from cuboidcli.cli import train as _train  # noqa: E402
-
-_train.register(app)
+# ``cuboids train`` is added on first use: LAZY_GROUPS.
 
 
 def _exit_status(code: object) -> int:

@@ -5,7 +5,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import click
 import typer
+import typer.main
 from rich.progress import TimeElapsedColumn, TimeRemainingColumn
 
 from cuboidcli.cli import train_options as opt
@@ -13,11 +15,15 @@ from cuboidcli.cli.common import console, fail, out, progress_bar, resolve_devic
 from cuboidcli.learn.solver_train import SolverTrainConfig
 from cuboidcli.nets.solver import SolverNetConfig
 
-train_app = typer.Typer(help="Train the learned components (neural solver, ...).", no_args_is_help=True)
+train_app = typer.Typer(
+    name="train", help="Train the learned components (neural solver, ...).", no_args_is_help=True
+)
 
 
-def register(app: typer.Typer) -> None:
-    app.add_typer(train_app, name="train")
+def group() -> click.Group:
+    """The ``cuboids train`` group as a click command, for :data:`cuboidcli.cli.main.LAZY_GROUPS` (the
+    ``cuboids`` program imports this module only when the group is used)."""
+    return typer.main.get_group(train_app)
 
 
 #: The end of ``cuboids train solver``'s torchrun paragraph.

@@ -1,6 +1,7 @@
 """`cuboids fit` on small inputs, and one test per class of bad input (message and exit code)."""
 
 import json
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -8,6 +9,8 @@ import pytest
 from typer.testing import CliRunner
 
 from cuboidcli.cli.main import app
+
+ROOT = Path(__file__).resolve().parents[2]
 
 runner = CliRunner()
 FAST = ["--hypotheses", "256", "--max-cuboids", "3"]
@@ -265,3 +268,29 @@ def test_a_closed_output_pipe_is_not_an_internal_error():
     _, err = proc.communicate(timeout=120)
     assert proc.returncode in (0, 1)  # 0 when the whole help was written before the pipe closed
     assert b"internal error" not in err and b"Traceback" not in err, err.decode()
+
+
+def test_fit_never_loads_the_training_package(tmp_path):
+    """``cuboids fit`` in a fresh process runs without importing ``cuboidcli.learn``: the train commands,
+    whose options come from the training configs, are built only when ``cuboids train`` is used."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys\n"
+        "from cuboidcli.cli.main import app\n"
+        "try:\n"
+        "    app(sys.argv[1:])\n"
+        "except SystemExit as e:\n"
+        "    assert not e.code, e.code\n"
+        "print(sorted(m for m in sys.modules if m.startswith('cuboidcli.learn')))\n"
+    )
+    sample = "cuboidcli/data/sample"
+    fit = ["fit", "--depth", f"{sample}/sample_depth.png", "-K", f"{sample}/camera.json", "--hypotheses=64"]
+    run = [sys.executable, "-c", code, *fit, "-o", str(tmp_path / "r.json")]
+    out = subprocess.run(run, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip().splitlines()[-1] == "[]"
+    help_run = [sys.executable, "-c", code, "train", "seed", "--help"]
+    train = subprocess.run(help_run, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert "cuboidcli.learn.seed_train" in train.stdout.strip().splitlines()[-1]
