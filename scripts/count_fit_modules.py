@@ -3,10 +3,11 @@
 Starts at ``cuboidcli/cli/main.py`` and follows every ``cuboidcli`` import, at module level and inside
 functions alike (read with :mod:`ast`, never executed), transitively. ``main.py`` registers its
 subcommands from one module each (``from cuboidcli.cli import fit as _fit`` ... ``_fit.register(app)``):
-only the one named by ``--command`` (default ``fit``, which also holds ``demo``) is followed. Imports under
-``if TYPE_CHECKING:`` never run and are not followed. Importing ``a.b.c`` runs ``a/__init__.py`` and
-``a/b/__init__.py`` too, so those count; the second figure leaves out the ``__init__.py`` files that hold
-nothing but a docstring.
+only the one named by ``--command`` (default ``fit``, which also holds ``demo``) is followed. Groups that
+``main.py`` imports by name on first use (its ``LAZY_GROUPS``: ``train``) count only for their own
+command. Imports under ``if TYPE_CHECKING:`` never run and are not followed. Importing ``a.b.c`` runs
+``a/__init__.py`` and ``a/b/__init__.py`` too, so those count; the second figure leaves out the
+``__init__.py`` files that hold nothing but a docstring.
 
     python scripts/count_fit_modules.py                      # this checkout's cuboidcli/
     python scripts/count_fit_modules.py ../other/cuboidcli   # another checkout, for a before/after figure
@@ -90,12 +91,25 @@ def registered_subcommands(known: dict[str, Path]) -> dict[str, str]:
     return {bound: name for name, bound in imports_of(MAIN, known[MAIN], known) if bound in registers}
 
 
+def lazy_groups(known: dict[str, Path]) -> dict[str, str]:
+    """``main.py``'s ``LAZY_GROUPS``: subcommand groups imported by name when first used (command ->
+    module); empty where the checkout has none."""
+    tree = ast.parse(known[MAIN].read_text(encoding="utf-8"))
+    for node in ast.walk(tree):
+        target = getattr(node, "target", None) or (getattr(node, "targets", None) or [None])[0]
+        if isinstance(target, ast.Name) and target.id == "LAZY_GROUPS" and node.value is not None:
+            return ast.literal_eval(node.value)
+    return {}
+
+
 def reached(package: Path, command: str = "fit") -> list[str]:
-    """The modules imported, transitively, on the path of ``cuboids COMMAND`` (sorted)."""
+    """The modules imported, transitively, on the path of ``cuboids COMMAND`` (sorted); a group of
+    ``LAZY_GROUPS`` counts only for its own command."""
     known = package_modules(package)
     others = {m for m in registered_subcommands(known).values() if m != f"{ROOT}.cli.{command}"}
+    lazy = lazy_groups(known)
     seen: set[str] = set()
-    todo = [MAIN]
+    todo = [MAIN, *([lazy[command]] if command in lazy else [])]
     while todo:
         module = todo.pop()
         if module in seen:
