@@ -2,8 +2,8 @@
 from one unit of the package to another.
 
 Runs the command in this process under :func:`sys.setprofile` and records every Python call into a
-``cuboidcli`` file (module bodies run by ``import`` are left out: the figure is about the functions control
-passes through, not about what gets imported). A call is attributed to the nearest ``cuboidcli`` frame
+``cuboidcli`` file (module and class bodies run by ``import`` are left out: the figure is about the functions
+control passes through, not about what gets imported). A call is attributed to the nearest ``cuboidcli`` frame
 above it, so a network's ``forward`` reached through ``torch.nn.Module.__call__`` counts as a call from the
 code that called the network. Units are the first component below ``cuboidcli`` (``fitting``, ``cli``,
 ``weights``), as in ``tests/test_layers.py``; a crossing is a distinct (caller unit -> callee unit) pair,
@@ -24,6 +24,7 @@ from __future__ import annotations
 import argparse
 import ast
 import importlib
+import inspect
 import sys
 import tempfile
 from collections import Counter
@@ -64,8 +65,8 @@ def trace(package: Path, argv: list[str]) -> tuple[Counter, Counter, set]:
         if event != "call":
             return
         path = frame.f_code.co_filename
-        if not path.startswith(prefix) or frame.f_code.co_name == "<module>":
-            return
+        if not path.startswith(prefix) or not frame.f_code.co_flags & inspect.CO_OPTIMIZED:
+            return  # not ours, or a module or class body run by an import
         files[path] += 1
         caller = frame.f_back
         while caller is not None and not caller.f_code.co_filename.startswith(prefix):
