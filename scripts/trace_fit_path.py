@@ -28,6 +28,7 @@ import inspect
 import sys
 import tempfile
 from collections import Counter
+from functools import cache
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -43,13 +44,14 @@ def unit_of(module_file: str, package: Path) -> str:
     return first
 
 
-def imported_units(module_file: str, package: Path) -> set[str]:
-    """The package units a file imports anywhere in it (module level or in functions)."""
+@cache
+def imported_units(module_file: str) -> frozenset[str]:
+    """The package units a file imports anywhere in it (module level or in functions); read once a file."""
     tree = ast.parse(Path(module_file).read_text(encoding="utf-8"))
     names = [a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names]
     names += [n.module or "" for n in ast.walk(tree) if isinstance(n, ast.ImportFrom) and not n.level]
     units = {name.split(".")[1] for name in names if name.startswith("cuboidcli.")}
-    return units | ({"cuboidcli"} if "cuboidcli" in names else set())
+    return frozenset(units | ({"cuboidcli"} if "cuboidcli" in names else set()))
 
 
 def trace(package: Path, argv: list[str]) -> tuple[Counter, Counter, set]:
@@ -75,7 +77,7 @@ def trace(package: Path, argv: list[str]) -> tuple[Counter, Counter, set]:
             a, b = unit_of(caller.f_code.co_filename, package), unit_of(path, package)
             if a != b:
                 crossings[(a, b)] += 1
-                if b in imported_units(caller.f_code.co_filename, package):
+                if b in imported_units(caller.f_code.co_filename):
                     by_import.add((a, b))
 
     main = importlib.import_module("cuboidcli.cli.main")

@@ -75,7 +75,7 @@ def train_seed_cmd(
 
     check_training_paths(data, resume, out)
     cfg = opt.config_of(SeedTrainConfig, options)
-    with training_run(out, resume, first_save="the first epoch ended"):
+    with training_run(out, resume):
         train_seed_sampler(data, out, cfg, on_event=_print_event, resume=resume)
 
 

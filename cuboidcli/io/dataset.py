@@ -31,6 +31,8 @@ from cuboidcli.io.depth import InputError, _imread_unchanged, read_depth, read_r
 from cuboidcli.io.jsonfile import read_json
 
 DEPTH_SUFFIXES = (".png", ".npy", ".npz", ".exr")
+#: The message of a dataset's JSON file that does not parse (:func:`~cuboidcli.io.jsonfile.read_json`).
+NOT_JSON = "{path} is not valid JSON ({e.msg} at line {e.lineno})"
 RGB_SUFFIXES = (".png", ".jpg", ".jpeg")
 
 
@@ -99,7 +101,7 @@ def _load_cameras(root: Path) -> tuple[dict[str, dict], dict | None]:
     for fname in ("cameras.json", "camera.json"):
         p = root / fname
         if p.is_file():
-            d = read_json(p, InputError, "{path} is not valid JSON ({e.msg} at line {e.lineno})")
+            d = read_json(p, InputError, NOT_JSON)
             if "fx" in d:
                 shared = d
             else:
@@ -113,7 +115,7 @@ def read_splits(root: Path) -> dict[str, list[str]]:
     path = Path(root) / "splits.json"
     if not path.is_file():
         return {}
-    d = read_json(path, InputError, "{path} is not valid JSON ({e.msg} at line {e.lineno})")
+    d = read_json(path, InputError, NOT_JSON)
     if not isinstance(d, dict) or not all(isinstance(v, list) for v in d.values()):
         raise InputError(f'{path} must map split names to lists of frame names ({{"train": [...], ...}})')
     return {str(k): [str(n) for n in v] for k, v in d.items()}
