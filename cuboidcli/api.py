@@ -56,8 +56,8 @@ def _check_config(config: FitConfig) -> None:
         raise ValueError(f"sampler {config.sampler!r}: choose {', '.join(SAMPLERS)}")
     if config.solver not in SOLVERS:
         raise ValueError(f"solver {config.solver!r}: choose {', '.join(SOLVERS)}")
-    for name in ("hypotheses", "max_cuboids", "grid_step", "min_set", "upright_set_size"):
-        if getattr(config, name) < 1:
+    for name in ("hypotheses", "max_cuboids", "grid_step", "min_set", "upright_set_size", "fit_points"):
+        if getattr(config, name) is not None and getattr(config, name) < 1:
             raise ValueError(f"{name} must be at least 1 (got {getattr(config, name)})")
 
 
@@ -92,8 +92,8 @@ class Result:
 
     @property
     def grid_labels(self) -> np.ndarray:
-        """(H / grid_step, W / grid_step) int32 over the fitting grid, as counted while fitting: k >= 0
-        inlier of cuboid k, -1 none, -2 hidden behind a cuboid, -3 no depth."""
+        """(ceil(H / s), ceil(W / s)) int32 over the fitting grid (step s = ``info.grid_step``), as counted
+        while fitting: k >= 0 inlier of cuboid k, -1 none, -2 hidden behind a cuboid, -3 no depth."""
         return self.info.assignment
 
     @cached_property

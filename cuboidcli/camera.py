@@ -86,8 +86,17 @@ class Camera:
                 f"depth map is {depth_m.shape[1]}x{depth_m.shape[0]} but the camera is "
                 f"{self.width}x{self.height}"
             )
-        z = depth_m[::step, ::step].astype(np.float64)
+        return self.backproject_grid(depth_m[::step, ::step], step)
+
+    def backproject_grid(self, depth_grid_m: np.ndarray, step: int) -> np.ndarray:
+        """Back-project the depth of every ``step``-th pixel, already taken (``depth_m[::step, ::step]``,
+        shape (ceil(H / step), ceil(W / step))), to points (H', W', 3) in camera coordinates."""
+        z = depth_grid_m.astype(np.float64)
         u, v = self.pixel_grid(step)
+        if z.shape != u.shape:
+            raise ValueError(
+                f"a step-{step} grid of a {self.width}x{self.height} camera is {u.shape}, not {z.shape}"
+            )
         x = (u - self.cx) / self.fx * z
         y = (v - self.cy) / self.fy * z
         return np.stack([x, y, z], axis=-1)

@@ -120,6 +120,7 @@ def make_result(
     }
     fit_info = {
         "n_points": info.n_points,
+        "grid_step": info.grid_step,
         "iterations": info.iterations,
         "batches": info.batches,
         "stop_reason": info.stop_reason,

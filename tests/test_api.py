@@ -44,7 +44,9 @@ def test_fit_finds_the_rendered_room(room_result, room_depth):
     assert np.array_equal(res.labels == -3, depth <= 0)
     assert (res.labels >= 0).sum() > 0.85 * (depth > 0).sum()
     # The fitting-grid labels agree with the per-pixel ones at the grid points.
-    step = res.settings["grid_step"]
+    step = res.info.grid_step
+    assert step == 8 and res.settings["grid_step"] is None  # chosen from the frame's size
+    assert res.record.extras["fit_info"]["grid_step"] == 8
     assert res.grid_labels.shape == (480 // step, 640 // step)
     agree = (res.grid_labels == res.labels[::step, ::step]).mean()
     assert agree > 0.95
@@ -169,3 +171,21 @@ assert not loaded, loaded
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT, timeout=300)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert json.loads((tmp_path / "r.json").read_text())["schema"] == "cuboids/1"
+
+
+def test_a_12_megapixel_frame_is_fitted_on_the_papers_4800_points(room_depth, nyu_camera, room_result):
+    """The fitting grid follows the frame's size: a 4032x3024 depth map of the same room gives the 60x80
+    grid's 4800 points (not 190,000 at a fixed step of 8) and the same walls and floor."""
+    import cv2
+
+    depth, _ = room_depth
+    big = cv2.resize(depth, (4032, 3024), interpolation=cv2.INTER_NEAREST)
+    cam = nyu_camera.scaled(4032 / 640)
+    res = cb.fit(big, cb.Camera(cam.fx, cam.fy, cam.cx, cam.cy), seed=0, **QUICK)
+    assert res.info.grid_step == 51 and res.grid_labels.shape == (60, 80)
+    assert res.info.n_points <= 4800 and room_result.info.grid_step == 8  # the room leaves some cells empty
+    assert res.info.n_points == pytest.approx(room_result.info.n_points, rel=0.02)
+    centers = np.array([c.center for c in res.cuboids])
+    assert np.any(np.abs(centers[:, 2] - 4.5) < 0.1) and np.any(np.abs(centers[:, 1] - 1.4) < 0.1)
+    # an explicit step still wins
+    assert FitConfig(grid_step=8).step_for(3024, 4032) == 8

@@ -237,6 +237,7 @@ def test_make_result_records_the_settings_and_what_happened():
     assert result.extras == {
         "fit_info": {
             "n_points": 1000,
+            "grid_step": 8,
             "iterations": 3,
             "batches": [1, 2, 0],
             "stop_reason": "gain_below_theta",

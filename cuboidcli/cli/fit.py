@@ -138,7 +138,7 @@ def fit(
     seed: int = config_option("seed"),
     device: str = device_option(),
     theta: float = config_option("theta", show_default=f"{DEFAULTS.theta_log_factor:g} ln n"),
-    grid_step: int = config_option("grid_step"),
+    grid_step: int = config_option("grid_step", show_default="auto: about 4800 points"),
     occlusion_aware: bool = config_option("occlusion_aware"),
     fast: bool = fast_option(),
     refine: bool = config_option("refine"),

@@ -438,7 +438,7 @@ def frame_metrics(
             math.sqrt(cfg.tau_sq_m2),
             fit_gravity=fit_gravity,
             known=known_gravity,
-            estimate=(cfg.grid_step, cfg.seed),
+            estimate=(cfg.step_for(*depth_m.shape), cfg.seed),
         )
     return m
 

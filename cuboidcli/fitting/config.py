@@ -42,8 +42,15 @@ class FitConfig:
     None = ``theta_log_factor`` * ln n."""
     theta_log_factor: float = 6.0
     """k in the default Theta = k ln n (n = fitting points); the paper's k is 9."""
-    grid_step: int = 8
-    """Fit on every n-th pixel of the depth map in each direction (8: 60x80 = 4800 points at 480x640)."""
+    grid_step: int | None = None
+    """Fit on every n-th pixel of the depth map in each direction; by default the step that gives about
+    ``fit_points`` points for the frame's size (8 at 640x480: 60x80 = 4800, the paper's grid; 51 for a
+    12 MP photo).
+
+    None = from the frame's size (``step_for``): the smallest step whose grid has at most
+    ``fit_points`` cells, so the fitting time does not grow with the resolution of the input."""
+    fit_points: int = 4800
+    """Fitting points a frame gives with the automatic ``grid_step`` (the paper's 60x80 grid)."""
     occlusion_aware: bool = True
     """Score with the occlusion-aware inlier count (OAI); off = plain inlier counting (the paper's no-OAI
     baselines)."""
@@ -155,6 +162,18 @@ class FitConfig:
     def theta_for(self, n_points: int) -> float:
         return self.theta_log_factor * math.log(max(n_points, 2)) if self.theta is None else self.theta
 
+    def step_for(self, height: int, width: int) -> int:
+        """The fitting grid's step for an (height, width) frame: ``grid_step`` when set, else the smallest
+        step whose grid (ceil(H / s) x ceil(W / s) cells) has at most ``fit_points`` cells."""
+        if self.grid_step is not None:
+            return self.grid_step
+        step = max(1, math.ceil(math.sqrt(height * width / self.fit_points) - 1e-9))
+        while step > 1 and math.ceil(height / (step - 1)) * math.ceil(width / (step - 1)) <= self.fit_points:
+            step -= 1
+        while math.ceil(height / step) * math.ceil(width / step) > self.fit_points:
+            step += 1
+        return step
+
     def to_dict(self) -> dict:
         return asdict(self)
 
@@ -173,6 +192,10 @@ class FitConfig:
             raise ValueError(
                 f"backend 'numba' runs on the CPU only, not on {self.device!r}; use auto or torch"
             )
+        if self.grid_step is not None and self.grid_step < 1:
+            raise ValueError(f"grid_step must be at least 1, got {self.grid_step}")
+        if self.fit_points < 1:
+            raise ValueError(f"fit_points must be at least 1, got {self.fit_points}")
         if not self.local_radii_m or min(self.local_radii_m) <= 0:
             raise ValueError(f"local_radii_m must be positive radii, got {self.local_radii_m}")
 

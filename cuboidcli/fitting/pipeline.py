@@ -60,6 +60,7 @@ class FitInfo:
     timing_s: dict = field(default_factory=dict)
     """Per-stage seconds; 'total' is input loaded -> cuboids selected."""
     grid_step: int = 8
+    """Step of the fitting grid used (``FitConfig.step_for`` the frame's size)."""
     assignment: np.ndarray | None = None
     """(Hs, Ws) int32 over the fitting grid: k >= 0 inlier of cuboid k, -1 none, -2 occluded, -3 no depth."""
     state: np.ndarray | None = None
@@ -88,13 +89,21 @@ class PreparedPoints:
     grid_shape: tuple[int, int]
     depth_grid: torch.Tensor  # (Hs, Ws) metres, 0 = invalid
     focal_cells: tuple[float, float] | None = None  # (fx, fy) / grid_step: focal lengths in grid cells
+    grid_step: int = 8
 
 
 def prepare_points(
     depth_m: np.ndarray, camera: Camera, grid_step: int, device: str = "cpu"
 ) -> PreparedPoints:
     """The fitting grid: every grid_step-th pixel (nearest, no averaging), invalid depth excluded."""
-    grid = camera.backproject(np.where(valid_depth(depth_m), depth_m, 0.0), grid_step)
+    if depth_m.shape != (camera.height, camera.width):
+        raise ValueError(
+            f"depth map is {depth_m.shape[1]}x{depth_m.shape[0]} but the camera is "
+            f"{camera.width}x{camera.height}"
+        )
+    # Subsample before masking: on a 12 MP photo the full-size mask would cost more than the fit's grid.
+    sub = depth_m[::grid_step, ::grid_step]
+    grid = camera.backproject_grid(np.where(valid_depth(sub), sub, 0.0), grid_step)
     depth_grid = grid[..., 2]
     flat = grid.reshape(-1, 3)
     ok = np.flatnonzero(flat[:, 2] > 0)
@@ -104,6 +113,7 @@ def prepare_points(
         grid_shape=depth_grid.shape,
         depth_grid=torch.from_numpy(depth_grid.astype(np.float32)).to(device),
         focal_cells=(camera.fx / grid_step, camera.fy / grid_step),
+        grid_step=grid_step,
     )
 
 
@@ -158,7 +168,7 @@ def fit_points(
     info = FitInfo(
         theta=config.theta_for(n),
         n_points=n,
-        grid_step=config.grid_step,
+        grid_step=prep.grid_step,
         align="free" if alignment is None else alignment.mode,
     )
     sp = ScoreParams(config.tau_sq_m2, config.beta, config.tau_c, config.occlusion_aware)
@@ -355,7 +365,7 @@ def fit_depth(
     if device == "cpu":
         ensure_compiled()
     t0 = time.perf_counter()
-    prep = prepare_points(depth_m, camera, config.grid_step, device)
+    prep = prepare_points(depth_m, camera, config.step_for(*depth_m.shape), device)
     timing = {"prepare": time.perf_counter() - t0}
     t = time.perf_counter()
     gravity, alignment, warning = resolve_alignment(prep, config)

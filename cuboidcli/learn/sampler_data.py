@@ -14,6 +14,7 @@ from pathlib import Path
 
 import torch
 
+from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import PreparedPoints, prepare_points
 from cuboidcli.io.dataset import Frame, list_frames, read_splits
 
@@ -52,12 +53,15 @@ def dataset_splits(root: str | Path) -> tuple[list[Frame], list[Frame], str]:
 
 
 def prepare_scenes(
-    frames: list[Frame], grid_step: int, min_points: int, workers: int = 1
+    frames: list[Frame], grid_step: int | FitConfig, min_points: int, workers: int = 1
 ) -> list[TrainScene]:
-    """Read the frames and keep their fitting grids (frames with fewer than ``min_points`` are skipped)."""
+    """Read the frames and keep their fitting grids (frames with fewer than ``min_points`` are skipped).
+    ``grid_step``: the grid's step, or a FitConfig whose ``step_for`` each frame's size gives it."""
 
     def one(frame: Frame) -> TrainScene:
-        return TrainScene(frame.name, prepare_points(frame.depth_m(), frame.camera, grid_step))
+        depth = frame.depth_m()
+        step = grid_step.step_for(*depth.shape) if isinstance(grid_step, FitConfig) else grid_step
+        return TrainScene(frame.name, prepare_points(depth, frame.camera, step))
 
     if workers > 1:
         with ThreadPoolExecutor(workers) as pool:

@@ -151,7 +151,7 @@ class SeedJob(OneNetJob):
         train, _, self.split = dataset_splits(self.data)
         if cfg.scenes is not None:
             train = train[: cfg.scenes]
-        self.scenes = prepare_scenes(train, fit.grid_step, fit.min_set * 10)
+        self.scenes = prepare_scenes(train, fit, fit.min_set * 10)
         mean, std = depth_statistics(self.scenes)
         gen = torch.Generator().manual_seed(cfg.seed + 1)
         t0 = time.perf_counter()

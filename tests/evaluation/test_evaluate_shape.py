@@ -188,9 +188,9 @@ def test_gravity_estimated_from_the_depth_when_nothing_else_is_known(room):
 
 
 def test_without_any_gravity_the_angles_are_empty(room):
-    """The default grid of 8 px leaves 20x15 cells at 160x120: no reliable estimate, no reference."""
+    """A grid of 8 px leaves 20x15 cells at 160x120: no reliable estimate, no reference."""
     boxes, depth, _ = room
-    m, s = shape_of(depth, boxes)
+    m, s = shape_of(depth, boxes, config=FitConfig(grid_step=8))
     assert s.reference == "none" and np.isnan(s.angle_gravity_deg).all()
     row = m.row()
     assert math.isnan(row["axis_angle_gravity_median_deg"]) and row["support_median_pct"] > 98.0

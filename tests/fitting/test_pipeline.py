@@ -14,7 +14,7 @@ from tests.conftest import fit_named, simple_room
 def joint_values(depth, camera, cuboids, config: FitConfig, occlusion_aware: bool) -> torch.Tensor:
     """Per fitting point: f_OAI of the cuboid set (Sec. 3.2.4), or the plain soft inlier of its nearest
     cuboid, computed with the reference kernels (N,)."""
-    points = prepare_points(depth, camera, config.grid_step).points.double()
+    points = prepare_points(depth, camera, config.step_for(*depth.shape)).points.double()
     c, a, R = stack_cuboids(cuboids, torch.float64)
     if occlusion_aware:
         return oai_of_set(points, c, a, R, config.tau_sq_m2, config.beta, config.tau_c)
