@@ -3,6 +3,7 @@ fit as a FitResult: what ``cuboids fit`` and a folder of frames run around :clas
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -13,7 +14,16 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.factories import DepthModelOptions, depth_estimator
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import FitInfo
-from cuboidcli.io.depth import InputError, Intrinsics, check_inputs, parse_intrinsics, read_depth, read_rgb
+from cuboidcli.io.depth import (
+    InputError,
+    Intrinsics,
+    check_inputs,
+    intrinsics_for_size,
+    parse_intrinsics,
+    read_depth,
+    read_rgb,
+)
+from cuboidcli.io.photo import DEFAULT_FOV_DEG, centred_intrinsics, default_camera, read_photo
 from cuboidcli.io.result import FitResult
 
 
@@ -53,27 +63,37 @@ def load_frame(
 ) -> FrameInput:
     """Read and check one frame. Raises InputError with a one-line message on unusable input.
 
-    Without ``depth_path`` the depth is estimated from the RGB image (``depth_model`` options).
+    Without ``depth_path`` the depth is estimated from the RGB image (``depth_model`` options). The
+    intrinsics come, in this order, from ``intrinsics`` (``-K``) or ``preset`` (scaled to the image when
+    its aspect ratio matches), from the photo's EXIF, from the depth model when it predicts the focal
+    length, else from a default field of view (with a warning); ``meta["intrinsics_source"]`` says which.
+    A photo's EXIF orientation is applied, so the frame is upright; ``-K`` describes the upright image.
     """
     if preset is not None and preset not in PRESETS:
         raise InputError(f"unknown --preset {preset!r}; choose one of: {', '.join(PRESETS)}")
     if depth_path is None and image_path is None:
         raise InputError("give a depth map (--depth D.png) or an RGB image")
-    notes: list[str] = []
-    if intrinsics is None and preset is None:
-        notes.append("no --intrinsics or --preset given: using the NYU Depth v2 intrinsics")
     name = frame_name or Path(depth_path if depth_path is not None else image_path).stem
-    intr = parse_intrinsics(intrinsics, preset, frame=name)
-    scale = resolve_depth_scale(depth_scale, intr, preset)
-    rgb = read_rgb(image_path) if image_path is not None else None
+    given = parse_intrinsics(intrinsics, preset, frame=name) if intrinsics or preset else None
+    scale = resolve_depth_scale(depth_scale, given or _NO_INTRINSICS, preset)
+    depth = read_depth(depth_path, scale) if depth_path is not None else None
+    notes: list[str] = []
+    rgb, exif = None, None
+    if image_path is not None:
+        photo = read_photo(image_path)
+        notes += photo.notes
+        rgb, exif = _registered(photo, image_path, depth)
+    h, w = depth.shape if depth is not None else rgb.shape[:2]
+    intr = intrinsics_for_size(given, w, h, None if intrinsics else preset) if given else exif
     source = None
     timing: dict = {}
-    if depth_path is not None:
-        depth = read_depth(depth_path, scale)
-    else:
-        depth, source = _estimate_depth(rgb, intr, scale, depth_model or DepthModelOptions(), timing)
+    if depth is None:
+        opts = depth_model or DepthModelOptions()
+        depth, source, intr = _estimate_depth(rgb, intr, scale, opts, timing, notes)
+    elif intr is None:
+        intr = default_camera(w, h)
+        notes.append(_guessed(intr))
     notes += check_inputs(depth, intr, None if rgb is None else rgb.shape)
-    h, w = depth.shape
     camera = intr.camera(w, h)
     meta = {
         "depth": None if depth_path is None else str(depth_path),
@@ -88,16 +108,59 @@ def load_frame(
     return FrameInput(depth, camera, rgb, scale, notes, meta, timing.get("depth"))
 
 
+#: Stands in for "no intrinsics given" where only their depth scale is asked for.
+_NO_INTRINSICS = Intrinsics(0.0, 0.0, 0.0, 0.0)
+
+
+def _guessed(intr: Intrinsics) -> str:
+    return (
+        f"no camera intrinsics (no -K, --preset or EXIF focal length): assuming a {DEFAULT_FOV_DEG:g} degree "
+        f"field of view across the long side (fx = {intr.fx:.1f} px); pass -K fx,fy,cx,cy for exact boxes"
+    )
+
+
+def _registered(photo, image_path, depth: np.ndarray | None) -> tuple[np.ndarray, Intrinsics | None]:
+    """The photo's pixels and EXIF intrinsics as the frame uses them: upright; beside a depth map, the
+    orientation whose size matches the depth map (a depth map is registered to the stored pixels when the
+    camera wrote its orientation only as a tag)."""
+    rgb, exif = photo.rgb, photo.exif_camera
+    if depth is None or rgb.shape[:2] == depth.shape or photo.orientation == 1:
+        return rgb, exif
+    stored = read_rgb(image_path)
+    if stored.shape[:2] == depth.shape:
+        return stored, None  # EXIF intrinsics are for the upright image; the depth map is not upright
+    return rgb, exif
+
+
 def _estimate_depth(
-    rgb: np.ndarray, intr: Intrinsics, depth_scale: float, opts: DepthModelOptions, timing: dict
-):
+    rgb: np.ndarray,
+    intr: Intrinsics | None,
+    depth_scale: float,
+    opts: DepthModelOptions,
+    timing: dict,
+    notes: list[str],
+) -> tuple[np.ndarray, str, Intrinsics]:
+    """Depth from the image: (depth_m, description, the intrinsics used). Without intrinsics a model that
+    predicts the focal length supplies them; otherwise the default field of view is assumed."""
     from cuboidcli.depth import estimate_depth
 
     h, w = rgb.shape[:2]
     try:
         estimator = depth_estimator(opts, depth_scale)
-        return estimate_depth(estimator, rgb, intr.camera(w, h), timing)
-    except (ValueError, FileNotFoundError) as e:
+        if intr is None and getattr(estimator, "predicts_focal", False):
+            t0 = time.perf_counter()
+            depth, focal = estimator.predict_with_focal(rgb)
+            timing["depth"] = time.perf_counter() - t0
+            if not (depth > 0).any():
+                raise ValueError(f"{estimator.describe()}: the estimated depth has no positive values")
+            intr = centred_intrinsics(focal, w, h, f"depth model: {estimator.describe()}")
+            return depth, estimator.describe(), intr
+        if intr is None:
+            intr = default_camera(w, h)
+            notes.append(_guessed(intr))
+        depth, source = estimate_depth(estimator, rgb, intr.camera(w, h), timing)
+        return depth, source, intr
+    except (ValueError, FileNotFoundError, ImportError) as e:
         raise InputError(str(e)) from e
 
 

@@ -4,11 +4,13 @@ and a fit packaged as a FitResult with its settings and fit_info."""
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import replace
 
 import cv2
 import numpy as np
 import pytest
+from cuboidcli.io.photo import DEFAULT_FOV_DEG
 
 from cuboidcli.camera import PRESETS, Camera
 from cuboidcli.cuboid import Cuboid
@@ -67,22 +69,22 @@ def test_a_depth_map_with_intrinsics(depth_png):
     }
 
 
-def test_without_intrinsics_the_nyu_preset_is_used_and_the_user_told(tmp_path):
+def test_without_intrinsics_a_default_field_of_view_is_assumed_and_the_user_told(tmp_path):
     units = cv2.resize(_units(), (640, 480), interpolation=cv2.INTER_NEAREST)
     cv2.imwrite(str(tmp_path / "full.png"), units)
     frame = load_frame(tmp_path / "full.png")
-    assert frame.camera == Camera.preset("nyu") and frame.meta["intrinsics_source"] == "preset:nyu"
-    assert frame.notes == ["no --intrinsics or --preset given: using the NYU Depth v2 intrinsics"]
+    fx = 320.0 / math.tan(math.radians(DEFAULT_FOV_DEG / 2))
+    assert frame.camera == Camera(fx, fx, 319.5, 239.5, 640, 480)
+    assert frame.meta["intrinsics_source"].startswith("default:")
+    assert len(frame.notes) == 1 and frame.notes[0].startswith(
+        "no camera intrinsics (no -K, --preset or EXIF"
+    )
     tum = load_frame(tmp_path / "full.png", preset="tum")  # a preset brings its depth unit: 1/5000 m
     assert tum.camera == Camera.preset("tum") and tum.notes == []
     assert tum.depth_scale == PRESETS["tum"]["depth_scale"] and tum.meta["intrinsics_source"] == "preset:tum"
     assert np.allclose(tum.depth_m, units / 5000.0, rtol=1e-6)
-    # the preset's principal point lies outside a small image: refused; intrinsics given for another
-    # image size but plausible for this one are used as they are, with a note
-    with pytest.raises(
-        InputError, match=r"principal point \(325.582, 253.736\) is far outside the 64x48 image"
-    ):
-        load_frame(_small(tmp_path))
+    # intrinsics given in a file for another image size but plausible for this one are used as they are,
+    # with a note
     shifted = tmp_path / "cam.json"
     shifted.write_text(
         json.dumps({"fx": 200.0, "fy": 210.0, "cx": 31.5, "cy": 23.5, "width": 640, "height": 480})
@@ -90,6 +92,31 @@ def test_without_intrinsics_the_nyu_preset_is_used_and_the_user_told(tmp_path):
     small = load_frame(_small(tmp_path), intrinsics=str(shifted))
     assert small.camera == Camera(200.0, 210.0, 31.5, 23.5, W, H)
     assert small.notes == [f"intrinsics are for 640x480 but the depth map is {W}x{H}; using them unscaled"]
+
+
+def test_a_preset_is_scaled_to_an_image_of_its_aspect_ratio_and_refused_for_another(tmp_path):
+    units = cv2.resize(_units(), (1280, 960), interpolation=cv2.INTER_NEAREST)
+    cv2.imwrite(str(tmp_path / "big.png"), units)
+    big = load_frame(tmp_path / "big.png", preset="nyu")
+    nyu = Camera.preset("nyu")
+    assert big.camera.fx == pytest.approx(1037.7158) and big.camera.fy == pytest.approx(2 * nyu.fy)
+    assert big.camera.cx == pytest.approx(2 * nyu.cx + 0.5) and big.camera.cy == pytest.approx(
+        2 * nyu.cy + 0.5
+    )
+    assert big.meta["intrinsics_source"] == "preset:nyu scaled to 1280x960" and big.notes == []
+    small = load_frame(_small(tmp_path), preset="nyu")  # 64x48: a tenth
+    assert small.camera.fx == pytest.approx(nyu.fx / 10)
+    square = cv2.resize(_units(), (1000, 1000), interpolation=cv2.INTER_NEAREST)
+    cv2.imwrite(str(tmp_path / "square.png"), square)
+    with pytest.raises(
+        InputError,
+        match=r"--preset nyu is for 640x480 images \(aspect 1.333\) but this "
+        r"image is 1000x1000 \(aspect 1.000\); give its intrinsics with -K fx,fy,cx,cy",
+    ):
+        load_frame(tmp_path / "square.png", preset="nyu")
+    # -K wins over a preset, which then only gives the depth unit
+    both = load_frame(tmp_path / "square.png", preset="tum", intrinsics="800,800,499.5,499.5")
+    assert both.camera.fx == 800.0 and both.depth_scale == PRESETS["tum"]["depth_scale"]
 
 
 def _small(tmp_path):

@@ -225,6 +225,39 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
     return _finite(Intrinsics(fx, fy, cx, cy, source="command line"), f"--intrinsics {spec!r}")
 
 
+#: Aspect ratios within this relative difference count as the same (a preset is then scaled).
+ASPECT_TOLERANCE = 0.01
+
+
+def intrinsics_for_size(intr: Intrinsics, width: int, height: int, preset: str | None = None) -> Intrinsics:
+    """``intr`` for a ``width`` x ``height`` image. A preset's intrinsics (``preset`` names it) are scaled
+    to the image when its aspect ratio matches (a 1280x960 image gets twice NYU's focal lengths) and refused
+    with an InputError when it does not; intrinsics the user wrote (without a size, or a JSON file's) are
+    used as given (:func:`check_inputs` warns when a file's size differs)."""
+    if preset is None or intr.width is None or intr.height is None:
+        return intr
+    if (intr.width, intr.height) == (width, height):
+        return intr
+    aspect, wanted = width / height, intr.width / intr.height
+    if abs(aspect - wanted) > ASPECT_TOLERANCE * wanted:
+        raise InputError(
+            f"--preset {preset} is for {intr.width}x{intr.height} images (aspect {wanted:.3f}) but this "
+            f"image is {width}x{height} (aspect {aspect:.3f}); give its intrinsics with -K fx,fy,cx,cy"
+        )
+    cam = Camera(intr.fx, intr.fy, intr.cx, intr.cy, intr.width, intr.height)
+    scaled = cam.scaled(width / intr.width, height / intr.height)
+    return Intrinsics(
+        scaled.fx,
+        scaled.fy,
+        scaled.cx,
+        scaled.cy,
+        width,
+        height,
+        intr.depth_scale,
+        source=f"{intr.source} scaled to {width}x{height}",
+    )
+
+
 def check_inputs(
     depth_m: np.ndarray, intr: Intrinsics, rgb_shape: tuple[int, ...] | None = None
 ) -> list[str]:
