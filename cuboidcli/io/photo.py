@@ -17,10 +17,12 @@ import numpy as np
 
 from cuboidcli.io.depth import InputError, Intrinsics, _one_line
 
-DEFAULT_FOV_DEG = 60.0
-"""Field of view across the long side assumed when a photo says nothing about its lens: between a phone's
-main camera (about 65-70 degrees across the long side, 26 mm equivalent) and the NYU Kinect's 63 degrees,
-so an unknown indoor photo is neither flattened nor stretched much. A first guess, to be tuned on data."""
+DEFAULT_FOV_DEG = 63.0
+"""Field of view across the long side assumed when neither the user, the photo's EXIF nor the depth model
+says anything about the lens: that of the Kinect-class cameras of the real frames we check against (NYU
+63.3, TUM and Redwood 62.7 degrees), a little narrower than a phone's main camera (69 degrees at 26 mm
+equivalent; phones write EXIF, so their photos rarely fall back to this). A 640x480 frame gets fx = 522 px
+(NYU's is 519)."""
 
 #: Range of plausible fields of view (degrees, across the long side); EXIF focal lengths outside it are
 #: treated as corrupt.
@@ -129,6 +131,15 @@ def exif_intrinsics(
     if not _plausible(fx, fy, w, h, what, notes):
         return None
     return _centred(fx, fy, w, h, f"exif: FocalLength {focal_mm:g} mm, FocalPlaneXResolution {xres:g}")
+
+
+def centred_intrinsics(focal_px: float, width: int, height: int, source: str) -> Intrinsics:
+    """Square pixels of ``focal_px`` with the principal point at the centre of a ``width`` x ``height``
+    image (e.g. the focal length a depth model predicts); InputError for a focal length that is not a
+    positive finite number."""
+    if not (math.isfinite(focal_px) and focal_px > 0):
+        raise InputError(f"{source}: the focal length {focal_px} px is not a positive number")
+    return _centred(focal_px, focal_px, width, height, source)
 
 
 def _centred(fx: float, fy: float, w: int, h: int, source: str) -> Intrinsics:

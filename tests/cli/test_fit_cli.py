@@ -294,3 +294,48 @@ def test_fit_never_loads_the_training_package(tmp_path):
     help_run = [sys.executable, "-c", code, "train", "seed", "--help"]
     train = subprocess.run(help_run, capture_output=True, text=True, timeout=300, cwd=ROOT)
     assert "cuboidcli.learn.seed_train" in train.stdout.strip().splitlines()[-1]
+
+
+def _phone_jpeg(path, rgb_upright: np.ndarray, orientation: int, f35: float | None) -> None:
+    """A JPEG as a phone writes it: the pixels stored turned (orientation 6: the upright image is the stored
+    one turned 90 degrees clockwise), the orientation and the 35 mm equivalent focal length as EXIF tags."""
+    from PIL import Image
+
+    stored = np.rot90(rgb_upright, k=1) if orientation == 6 else rgb_upright  # undo a clockwise turn
+    exif = Image.Exif()
+    exif[0x0112] = orientation
+    if f35 is not None:
+        exif.get_ifd(0x8769)[41989] = f35
+    Image.fromarray(np.ascontiguousarray(stored)).save(path, exif=exif, quality=95)
+
+
+def test_a_phone_photo_is_fitted_upright_with_the_camera_of_its_exif(tmp_path, tiny_depth_weights):
+    """A portrait photo stored landscape with orientation 6 and a 26 mm equivalent lens: the fit sees the
+    upright 120x160 image, fx = 26 / 36 x 160 px, principal point at the centre, and the JSON says so."""
+    upright = np.zeros((160, 120, 3), np.uint8)
+    upright[:40] = (250, 30, 30)  # a red top, so that "upright" is visible in the overlay
+    upright[40:] = (40, 120, 200)
+    photo = tmp_path / "phone.jpg"
+    _phone_jpeg(photo, upright, 6, 26)
+    out = tmp_path / "phone.json"
+    free = ["--align", "free"]  # a random network's depth has no floor to find gravity on
+    r = run("fit", photo, "--depth-model", tiny_depth_weights, "-o", out, "--overlay", *ONE_CUBOID, *free)
+    assert r.exit_code == 0, r.output
+    d = json.loads(out.read_text())
+    cam = d["camera"]
+    assert (cam["width"], cam["height"]) == (120, 160)
+    assert cam["fx"] == pytest.approx(26 / 36 * 160) and cam["fy"] == cam["fx"]
+    assert (cam["cx"], cam["cy"]) == (59.5, 79.5)
+    assert d["input"]["intrinsics_source"] == "exif: FocalLengthIn35mmFilm 26 mm"
+    overlay = cv2.imread(str(tmp_path / "phone_overlay.png"))
+    assert overlay.shape[:2] == (160, 120)
+    assert "warning" not in r.output
+    # Without any camera information: the default field of view, one warning, a fitted result.
+    bare = tmp_path / "bare.jpg"
+    _phone_jpeg(bare, upright, 1, None)
+    r = run("fit", bare, "--depth-model", tiny_depth_weights, "-o", tmp_path / "bare.json", *ONE_CUBOID, *free)
+    assert r.exit_code == 0, r.output
+    assert r.output.count("warning:") == 1 and "63 degree field of view" in " ".join(r.output.split())
+    d = json.loads((tmp_path / "bare.json").read_text())
+    assert d["input"]["intrinsics_source"].startswith("default: 63 degree")
+    assert d["camera"]["cx"] == 59.5 and len(d["cuboids"]) == 1

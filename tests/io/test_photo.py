@@ -217,7 +217,7 @@ def test_default_camera_has_the_stated_field_of_view(w, h, fov):
     assert long_fov == pytest.approx(fov)
     assert intr.fx == intr.fy and (intr.cx, intr.cy) == ((w - 1) / 2, (h - 1) / 2)
     assert (intr.width, intr.height) == (w, h) and intr.source.startswith("default:")
-    assert DEFAULT_FOV_DEG == 60
+    assert DEFAULT_FOV_DEG == 63  # README, "From a photo"
     with pytest.raises(InputError):
         default_camera(w, h, 180)
 
