@@ -333,7 +333,9 @@ def test_a_phone_photo_is_fitted_upright_with_the_camera_of_its_exif(tmp_path, t
     # Without any camera information: the default field of view, one warning, a fitted result.
     bare = tmp_path / "bare.jpg"
     _phone_jpeg(bare, upright, 1, None)
-    r = run("fit", bare, "--depth-model", tiny_depth_weights, "-o", tmp_path / "bare.json", *ONE_CUBOID, *free)
+    r = run(
+        "fit", bare, "--depth-model", tiny_depth_weights, "-o", tmp_path / "bare.json", *ONE_CUBOID, *free
+    )
     assert r.exit_code == 0, r.output
     assert r.output.count("warning:") == 1 and "63 degree field of view" in " ".join(r.output.split())
     d = json.loads((tmp_path / "bare.json").read_text())
