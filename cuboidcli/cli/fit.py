@@ -117,9 +117,18 @@ def fit(
         "-d",
         help="Depth map (16-bit PNG, .npy/.npz in metres, .exr) or a folder of depth maps.",
     ),
-    intrinsics: str = typer.Option(None, "--intrinsics", "-K", help="fx,fy,cx,cy in pixels, or a JSON file."),
+    intrinsics: str = typer.Option(
+        None,
+        "--intrinsics",
+        "-K",
+        help="fx,fy,cx,cy in pixels (of the upright image), or a JSON file.",
+        show_default="a preset, the photo's EXIF, the depth model, else a 63 degree field of view",
+    ),
     preset: str = typer.Option(
-        None, "--preset", help="Camera preset: nyu, tum or scannet (intrinsics + depth scale)."
+        None,
+        "--preset",
+        help="Camera preset: nyu, tum or scannet (intrinsics + depth scale); scaled to an image of the same "
+        "aspect ratio.",
     ),
     depth_scale: float = typer.Option(
         None, "--depth-scale", help="Metres per depth-PNG unit.", show_default="0.001"
