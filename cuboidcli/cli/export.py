@@ -54,7 +54,13 @@ def export(
         None, "--depth-scale", help="Metres per depth-PNG unit; default: the result's, else 0.001."
     ),
     with_points: bool = typer.Option(False, "--with-points", help="Add the input point cloud to the GLB."),
-    step: int = typer.Option(1, "--step", min=1, help="Use every step-th pixel for point clouds."),
+    step: int = typer.Option(
+        None,
+        "--step",
+        min=1,
+        help="Use every step-th pixel for point clouds.",
+        show_default="1, or what keeps a large frame's cloud within 640x480 points",
+    ),
     onnx: Path | None = typer.Option(None, "--onnx", help="Export the neural solver to this ONNX file."),
     weights: Path | None = typer.Option(
         None, "--weights", help="Solver weights for --onnx (default: the packaged weights)."
@@ -99,7 +105,7 @@ def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
 
 def _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step) -> None:
     from cuboidcli.export import export_result
-    from cuboidcli.io.depth import read_depth, read_rgb
+    from cuboidcli.io.depth import read_depth
     from cuboidcli.io.result import read_result
 
     with user_errors():
@@ -116,7 +122,7 @@ def _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scal
             )
         scale = depth_scale if depth_scale is not None else float(result.input.get("depth_scale") or 0.001)
         depth_m = None if depth is None else read_depth(depth, scale)
-        rgb = None if image is None else read_rgb(image)
+        rgb = None if image is None else _image(image, result.camera)
         try:
             written = export_result(
                 result,
@@ -133,6 +139,20 @@ def _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scal
             fail(str(e))
     for path in written.values():
         out.print(f"wrote {path}", highlight=False)
+
+
+def _image(path, camera):
+    """The image as the fit saw it: upright after its EXIF orientation, or as stored where that is the
+    size of the result's camera (a depth map registered to the stored pixels)."""
+    from cuboidcli.io.depth import read_rgb
+    from cuboidcli.io.photo import read_photo
+
+    rgb = read_photo(path).rgb
+    if rgb.shape[:2] != (camera.height, camera.width):
+        stored = read_rgb(path)
+        if stored.shape[:2] == (camera.height, camera.width):
+            return stored
+    return rgb
 
 
 def register(app: typer.Typer) -> None:

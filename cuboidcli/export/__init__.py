@@ -83,8 +83,27 @@ def ply_paths(points_path: str | Path) -> dict[str, Path]:
     return {"points_ply": p, "cuboids_ply": _sibling(p, "points", "cuboids", ".ply")}
 
 
+#: Point clouds of larger frames are subsampled to at most about this many pixels (a 640x480 frame's): a
+#: 12 MP photo's every pixel would make a 200 MB file that no viewer opens smoothly.
+MAX_CLOUD_PIXELS = 640 * 480
+
+
+def cloud_step(shape: tuple[int, int], point_step: int | None = None) -> int:
+    """The pixel step of an exported point cloud of an (H, W) depth map: ``point_step`` when given, else
+    1 up to :data:`MAX_CLOUD_PIXELS` pixels and the smallest step that keeps the cloud within it above."""
+    if point_step is not None:
+        if point_step < 1:
+            raise ValueError(f"the point step must be at least 1, got {point_step}")
+        return int(point_step)
+    h, w = shape
+    step = 1
+    while -(-h // step) * -(-w // step) > MAX_CLOUD_PIXELS:
+        step += 1
+    return step
+
+
 def _labelled_points(
-    result: FitResult, depth_m: np.ndarray, point_step: int
+    result: FitResult, depth_m: np.ndarray, point_step: int | None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Valid points (N, 3) m, their flat pixel indices (N,) and cuboid labels (N,) of a depth map."""
     if depth_m.shape != (result.camera.height, result.camera.width):
@@ -93,7 +112,7 @@ def _labelled_points(
             f"{result.camera.width}x{result.camera.height}; pass the depth map the result was "
             "fitted on"
         )
-    points, pix = depth_points(depth_m, result.camera, point_step)
+    points, pix = depth_points(depth_m, result.camera, cloud_step(depth_m.shape, point_step))
     return points, pix, assign_labels(points, result.cuboids, result.settings)
 
 
@@ -104,7 +123,7 @@ def write_result_glb(
     depth_m: np.ndarray | None = None,
     rgb: np.ndarray | None = None,
     with_points: bool = False,
-    point_step: int = 1,
+    point_step: int | None = None,
     labelled: tuple | None = None,
 ) -> Path:
     """GLB of the result's cuboids, with the input camera; with ``with_points`` also the depth map's points.
@@ -120,7 +139,7 @@ def write_result_glb(
         if rgb is not None and rgb.shape[:2] != depth_m.shape:
             raise ValueError("the RGB image and the depth map differ in size")
         if rgb is not None:
-            points, pix = depth_points(depth_m, result.camera, point_step)
+            points, pix = depth_points(depth_m, result.camera, cloud_step(depth_m.shape, point_step))
             colors = np.asarray(rgb, dtype=np.uint8).reshape(-1, 3)[pix]
         else:
             points, _, labels = labelled or _labelled_points(result, depth_m, point_step)
@@ -153,7 +172,7 @@ def write_result_ply(
     points_path: str | Path,
     depth_m: np.ndarray,
     *,
-    point_step: int = 1,
+    point_step: int | None = None,
     cuboids_path: str | Path | None = None,
     labelled: tuple | None = None,
 ) -> dict[str, Path]:
@@ -192,7 +211,7 @@ def export_result(
     depth_m: np.ndarray | None = None,
     rgb: np.ndarray | None = None,
     with_points: bool = False,
-    point_step: int = 1,
+    point_step: int | None = None,
 ) -> dict[str, Path]:
     """Write each output whose path is given; returns {output kind: path}.
 
@@ -200,7 +219,8 @@ def export_result(
     with the cuboid meshes in ``<name>_cuboids.ply`` beside it (see :func:`ply_paths`; needs ``depth_m``).
     ``obj_path``: the OBJ and its .mtl. ``overlay_path``: the overlay PNG and, beside it, the label image,
     its colourised version and the panel (see :func:`image_paths`). ``depth_m`` (H, W) metres and ``rgb``
-    (H, W, 3) uint8 must match the result's camera size; point clouds use every ``point_step``-th pixel.
+    (H, W, 3) uint8 must match the result's camera size; point clouds use every ``point_step``-th pixel
+    (None: :func:`cloud_step`).
     Raises ValueError for missing or mismatched inputs.
     """
     if ply_path is not None and depth_m is None:
@@ -242,14 +262,15 @@ def write_outputs(
     obj: bool = False,
     overlay: bool = False,
     with_points: bool = False,
-    point_step: int = 1,
+    point_step: int | None = None,
 ) -> dict[str, Path]:
     """Write the requested outputs next to ``out_stem`` (e.g. ``out/scene`` for ``out/scene.json``).
 
     ``glb``: <stem>.glb (``with_points`` adds the depth map's points). ``ply``: <stem>_points.ply and
     <stem>_cuboids.ply (needs ``depth_m``). ``obj``: <stem>.obj + <stem>.mtl. ``overlay``: <stem>_overlay.png,
     <stem>_labels.png, <stem>_labels_color.png, <stem>_panel.png. ``depth_m`` (H, W) metres and ``rgb``
-    (H, W, 3) uint8 must match the result's camera size; points use every ``point_step``-th pixel.
+    (H, W, 3) uint8 must match the result's camera size; points use every ``point_step``-th pixel (None:
+    :func:`cloud_step`).
     Returns {output kind: path}; see :func:`export_result`.
     """
     base = Path(out_stem)

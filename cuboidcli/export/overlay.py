@@ -55,34 +55,24 @@ def raycast(camera: Camera, cuboids: list[Cuboid]) -> RayCast:
     parameter t is the z-depth. In the box frame the ray is ``o + t * R^T d`` with ``o = -R^T c``; the slab
     test gives the entry t_near and exit t_far. A camera inside a box sees the box's inside (t_far).
     """
-    h, w = camera.height, camera.width
-    u, v = camera.pixel_grid()
-    dirs = np.stack([(u - camera.cx) / camera.fx, (v - camera.cy) / camera.fy, np.ones_like(u)], -1).reshape(
-        -1, 3
+    from cuboidcli.geometry.raycast import raycast_boxes
+
+    k = len(cuboids)
+    centers = np.array([c.center for c in cuboids], dtype=np.float64).reshape(k, 3)
+    half = np.array([c.half_size for c in cuboids], dtype=np.float64).reshape(k, 3)
+    rots = np.array([c.rotation for c in cuboids], dtype=np.float64).reshape(k, 3, 3)
+    depth, label, shade = raycast_boxes(
+        float(camera.fx),
+        float(camera.fy),
+        float(camera.cx),
+        float(camera.cy),
+        int(camera.width),
+        int(camera.height),
+        centers,
+        half,
+        rots,
     )
-    ray_len = np.linalg.norm(dirs, axis=1)
-    depth = np.full(h * w, np.inf)
-    label = np.full(h * w, -1, dtype=np.int32)
-    shade = np.zeros(h * w, dtype=np.float32)
-    rows = np.arange(h * w)
-    for k, cub in enumerate(cuboids):
-        origin = -cub.rotation.T @ cub.center
-        d_loc = dirs @ cub.rotation
-        # Rays parallel to a slab get a tiny direction of the same sign: their t for that slab is +-huge.
-        d_loc = np.where(np.abs(d_loc) < 1e-12, np.where(d_loc < 0, -1e-12, 1e-12), d_loc)
-        t1 = (-cub.half_size - origin) / d_loc
-        t2 = (cub.half_size - origin) / d_loc
-        t_lo, t_hi = np.minimum(t1, t2), np.maximum(t1, t2)
-        t_near, t_far = t_lo.max(axis=1), t_hi.min(axis=1)
-        inside = t_near <= 0.0
-        t = np.where(inside, t_far, t_near)
-        axis = np.where(inside, t_hi.argmin(axis=1), t_lo.argmax(axis=1))
-        hit = (t_near <= t_far) & (t_far > 0.0) & (t < depth)
-        depth[hit] = t[hit]
-        label[hit] = k
-        # The side's normal is the local axis `axis`, so |cos| = |d_loc[axis]| / |d|.
-        shade[hit] = (np.abs(d_loc[rows, axis]) / ray_len)[hit]
-    return RayCast(depth.reshape(h, w), label.reshape(h, w), shade.reshape(h, w))
+    return RayCast(depth, label, shade)
 
 
 def label_image(cast_or_label: RayCast | np.ndarray) -> np.ndarray:

@@ -395,3 +395,14 @@ def test_a_result_without_cuboids_still_exports(tmp_path):
     assert trimesh.load(written["glb"]).graph.nodes_geometry == []
     assert (cv2.imread(str(written["labels"]), cv2.IMREAD_UNCHANGED) == 0).all()
     assert "o cuboid" not in written["obj"].read_text()
+
+
+def test_point_clouds_of_large_frames_are_subsampled_to_a_vga_frames_size():
+    from cuboidcli.export import MAX_CLOUD_PIXELS, cloud_step
+
+    assert cloud_step((480, 640)) == 1 and cloud_step((425, 560)) == 1
+    assert cloud_step((3024, 4032)) == 7  # 432 x 576 = 248,832 points; a step of 6 would give 338,688
+    assert -(-3024 // 6) * -(-4032 // 6) > MAX_CLOUD_PIXELS >= 432 * 576
+    assert cloud_step((3024, 4032), 2) == 2  # an explicit step wins
+    with pytest.raises(ValueError, match="at least 1"):
+        cloud_step((480, 640), 0)
