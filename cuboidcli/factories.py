@@ -7,7 +7,7 @@ The parts themselves live below (:mod:`cuboidcli.solvers`, :mod:`cuboidcli.sampl
 
 - :func:`make_solver`: numerical, neural or ONNX, from a :class:`~cuboidcli.fitting.config.FitConfig`;
 - :func:`make_sampler`: uniform, sequential, local or learned; :func:`load_learned_sampler` the latter;
-- :func:`make_depth_estimator`: the built-in depth network or a user's ONNX model;
+- :func:`make_depth_estimator`: the built-in depth network, a user's ONNX model or a Hugging Face model;
   :func:`depth_estimator` the same for :class:`DepthModelOptions`, built once per process;
   :func:`depth_for_fit` depth from an RGB image in one call.
 
@@ -85,28 +85,64 @@ def load_learned_sampler(weights: str | os.PathLike | None = None, device: str =
 
 def make_depth_estimator(
     model: str | os.PathLike | None = None,
-    kind: str = "metric",
+    kind: str | None = None,
     scale: float | None = None,
     shift: float | None = None,
     ref_depth: np.ndarray | None = None,
     device: str = "cpu",
+    *,
+    camera_height_m: float | None = None,
+    onnx_preset: str | None = None,
+    onnx_mean: tuple[float, float, float] | None = None,
+    onnx_std: tuple[float, float, float] | None = None,
+    onnx_size: int | None = None,
+    onnx_multiple: int | None = None,
 ):
-    """The estimator for a ``--depth-model`` option: None = the built-in network (``models/depth_v3.pt`` or
-    ``$CUBOIDS_DEPTH_WEIGHTS``), a ``.pt`` checkpoint of the built-in network, or an ``.onnx`` model with
-    its ``kind`` and alignment (:mod:`cuboidcli.depth.estimator`)."""
-    from cuboidcli.depth.estimator import BuiltinDepthEstimator, OnnxDepthEstimator
+    """The estimator for a ``--depth-model`` option:
 
-    if model is None or Path(model).suffix.lower() == ".pt":
-        if kind != "metric" or scale is not None or shift is not None or ref_depth is not None:
+    - None: the built-in network (``models/depth_v3.pt`` or ``$CUBOIDS_DEPTH_WEIGHTS``); a ``.pt`` file: a
+      checkpoint of the built-in network (both metric: ``kind`` None or "metric", no scale);
+    - an ``.onnx`` file, with its ``kind`` (None: the preset's, else metric), alignment and the ``onnx_*``
+      conventions (:class:`cuboidcli.depth.estimator.OnnxDepthEstimator`, presets in
+      :mod:`cuboidcli.depth.onnx_presets`);
+    - ``hf:owner/name`` or a folder saved with ``save_pretrained``: a Hugging Face ``transformers``
+      depth-estimation model (:class:`cuboidcli.depth.hf.HFDepthEstimator`; ``kind`` None: what its
+      config says).
+
+    Relative kinds need one scale source: ``scale`` (and ``shift``), ``ref_depth`` (a partial depth map
+    in metres, (H, W), 0 = unknown) or ``camera_height_m`` (the camera's height above the floor).
+    Raises a one-line ValueError (FileNotFoundError for a missing file) for anything unusable.
+    """
+    from cuboidcli.depth.estimator import BuiltinDepthEstimator, OnnxDepthEstimator
+    from cuboidcli.depth.hf import HFDepthEstimator, is_hf_model
+
+    onnx_opts = {
+        "preset": onnx_preset, "mean": onnx_mean, "std": onnx_std, "size": onnx_size,
+        "size_multiple": onnx_multiple,
+    }  # fmt: skip
+    is_onnx = model is not None and not is_hf_model(model) and Path(model).suffix.lower() == ".onnx"
+    if not is_onnx and any(v is not None for v in onnx_opts.values()):
+        raise ValueError("the ONNX preset, mean, std, size and multiple apply to an .onnx depth model only")
+    if model is None or (not is_hf_model(model) and Path(model).suffix.lower() == ".pt"):
+        extra = (scale, shift, ref_depth, camera_height_m)
+        if kind not in (None, "metric") or any(v is not None for v in extra):
             raise ValueError(
-                "the built-in depth network predicts metric depth; kind, scale, shift and a partial depth "
-                "map apply to an ONNX model (--depth-model model.onnx)"
+                "the built-in depth network predicts metric depth; kind, scale, shift, a partial depth map "
+                "and the camera height apply to an ONNX or Hugging Face model (--depth-model)"
             )
         return BuiltinDepthEstimator(resolve("depth", model), device=device)
-    if Path(model).suffix.lower() == ".onnx":
-        return OnnxDepthEstimator(model, kind=kind, scale=scale, shift=shift, ref_depth=ref_depth)
+    if is_hf_model(model):
+        return HFDepthEstimator(model, kind, scale, shift, ref_depth, camera_height_m, device=device)
+    if is_onnx:
+        mean = onnx_opts.pop("mean")
+        std = onnx_opts.pop("std")
+        return OnnxDepthEstimator(
+            model, kind=kind, scale=scale, shift=shift, ref_depth=ref_depth, mean=mean, std=std,
+            camera_height_m=camera_height_m, **onnx_opts,
+        )  # fmt: skip
     raise ValueError(
-        f"depth model {model}: expected an .onnx file (or a .pt checkpoint of the built-in network)"
+        f"depth model {model}: expected an .onnx file, a Hugging Face model (hf:owner/name or a folder "
+        "saved with save_pretrained) or a .pt checkpoint of the built-in network"
     )
 
 
@@ -114,38 +150,59 @@ def depth_for_fit(
     rgb: np.ndarray,
     camera: Camera,
     model: str | os.PathLike | None = None,
-    kind: str = "metric",
+    kind: str | None = None,
     scale: float | None = None,
     shift: float | None = None,
     partial_depth: np.ndarray | None = None,
     device: str = "cpu",
     timing: dict | None = None,
+    *,
+    camera_height_m: float | None = None,
+    **onnx_options,
 ) -> tuple[np.ndarray, str]:
     """Depth for ``fit_depth`` from an RGB image: ``(depth_m float32 (H, W), one-line description)``.
 
-    rgb: (H, W, 3) uint8 RGB; camera: its intrinsics. ``model`` etc. as :func:`make_depth_estimator`;
-    ``partial_depth`` (H, W) metres, 0 = unknown, aligns a relative model's output. ``timing``: a dict
-    that receives ``"depth"``, the seconds of the estimation itself (building the estimator excluded).
+    rgb: (H, W, 3) uint8 RGB; camera: its intrinsics. ``model`` etc. as :func:`make_depth_estimator`
+    (``onnx_options``: its ``onnx_*`` keywords); ``partial_depth`` (H, W) metres, 0 = unknown, aligns a
+    relative model's output; ``camera_height_m`` scales it from the floor. ``timing``: a dict that receives
+    ``"depth"``, the seconds of the estimation itself (building the estimator excluded).
     """
     from cuboidcli.depth.estimator import estimate_depth
 
-    estimator = make_depth_estimator(model, kind, scale, shift, partial_depth, device)
+    estimator = make_depth_estimator(
+        model, kind, scale, shift, partial_depth, device, camera_height_m=camera_height_m, **onnx_options
+    )
     return estimate_depth(estimator, rgb, camera, timing)
 
 
 @dataclass(frozen=True)
 class DepthModelOptions:
-    """How to get depth from an RGB image when no depth map is given (:mod:`cuboidcli.depth`)."""
+    """How to get depth from an RGB image when no depth map is given (:mod:`cuboidcli.depth`). Frozen and
+    hashable: :func:`depth_estimator` builds one estimator per distinct options."""
 
     model: str | None = None
-    """None = the built-in network (models/depth_v3.pt); a .pt checkpoint or a user's .onnx model."""
-    kind: str = "metric"
-    """metric | relative | relative-inverse (for ONNX models)."""
+    """None = the built-in network (models/depth_v3.pt); a .pt checkpoint, a user's .onnx model, a
+    Hugging Face model id ``hf:owner/name`` or a folder saved with ``save_pretrained``."""
+    kind: str | None = None
+    """None = what the model predicts (built-in: metric; ONNX: the preset's, else metric; Hugging Face: its
+    config's); metric | relative | relative-inverse to override."""
     scale: float | None = None
     shift: float | None = None
     partial_depth: str | None = None
     """Sparse/partial depth map (same size as the image) to align a relative model to."""
     device: str = "cpu"
+    camera_height_m: float | None = None
+    """The camera's height above the floor in metres: scales a relative model's output (shift 0) so that
+    the floor lies this far below the camera."""
+    onnx_preset: str | None = None
+    """A named ONNX convention (:data:`cuboidcli.depth.onnx_presets.PRESETS`)."""
+    onnx_mean: tuple[float, float, float] | None = None
+    onnx_std: tuple[float, float, float] | None = None
+    """Input normalisation of an ONNX model (overrides the preset's; default ImageNet)."""
+    onnx_size: int | None = None
+    """Input size of an ONNX model with dynamic axes (the preset's side; overrides the preset's)."""
+    onnx_multiple: int | None = None
+    """Both input sides of an ONNX model with dynamic axes are rounded to multiples of this."""
 
 
 @lru_cache(maxsize=4)
@@ -156,4 +213,10 @@ def depth_estimator(opts: DepthModelOptions, depth_scale: float = 0.001):
     from cuboidcli.io.depth import read_depth
 
     partial = read_depth(opts.partial_depth, depth_scale) if opts.partial_depth else None
-    return make_depth_estimator(opts.model, opts.kind, opts.scale, opts.shift, partial, opts.device)
+    return make_depth_estimator(
+        opts.model, opts.kind, opts.scale, opts.shift, partial, opts.device,
+        camera_height_m=opts.camera_height_m, onnx_preset=opts.onnx_preset,
+        onnx_mean=None if opts.onnx_mean is None else tuple(opts.onnx_mean),
+        onnx_std=None if opts.onnx_std is None else tuple(opts.onnx_std),
+        onnx_size=opts.onnx_size, onnx_multiple=opts.onnx_multiple,
+    )  # fmt: skip

@@ -3,7 +3,9 @@ network itself is :mod:`cuboidcli.nets.depth`, its training :mod:`cuboidcli.lear
 (``cuboids train depth``).
 
 Public entry points: :func:`estimate_depth` (what ``cuboids fit image.png`` without ``--depth`` calls, with
-an estimator built once), :class:`BuiltinDepthEstimator`, :class:`OnnxDepthEstimator`. Building an
+an estimator built once), :class:`BuiltinDepthEstimator`, :class:`OnnxDepthEstimator` (named conventions in
+:mod:`.onnx_presets`), :class:`HFDepthEstimator` (Hugging Face ``transformers`` models, ``cuboids[hf]``),
+:class:`DepthScaling` (relative depth to metres; from the camera's height in :mod:`.scale`). Building an
 estimator for a ``--depth-model`` value, the shipped weights included, is
 :func:`cuboidcli.factories.make_depth_estimator`.
 """
@@ -11,13 +13,17 @@ estimator for a ``--depth-model`` value, the shipped weights included, is
 from cuboidcli.depth.estimator import (
     BuiltinDepthEstimator,
     DepthEstimator,
+    DepthScaling,
     OnnxDepthEstimator,
     estimate_depth,
 )
+from cuboidcli.depth.hf import HFDepthEstimator
 
 __all__ = [
     "BuiltinDepthEstimator",
     "DepthEstimator",
+    "DepthScaling",
+    "HFDepthEstimator",
     "OnnxDepthEstimator",
     "estimate_depth",
 ]
