@@ -203,6 +203,9 @@ class DepthModelOptions:
     """Input size of an ONNX model with dynamic axes (the preset's side; overrides the preset's)."""
     onnx_multiple: int | None = None
     """Both input sides of an ONNX model with dynamic axes are rounded to multiples of this."""
+    drop_edges: bool = True
+    """Leave out the pixels on depth discontinuities of the estimate (:mod:`cuboidcli.depth.edges`): a
+    network smears depth across object boundaries, and those points float between the surfaces."""
 
 
 @lru_cache(maxsize=4)

@@ -86,6 +86,14 @@ class FitJob:
         )
 
 
+def _depth_model_path(model: str | None, shipped_path) -> str | None:
+    """A --depth-model value as the estimator takes it: a Hugging Face id as written, a file or folder
+    resolved against the shipped models/."""
+    if model is None or model.startswith("hf:"):
+        return model
+    return str(shipped_path(model))
+
+
 def _str_or_none(p) -> str | None:
     return None if p is None else str(p)
 
@@ -168,16 +176,38 @@ def fit(
     depth_model: str = typer.Option(
         None,
         "--depth-model",
-        help="Without --depth: a user's monocular depth model (.onnx) or a built-in checkpoint (.pt).",
+        help="Without --depth: the monocular depth model: a Hugging Face model id (hf:owner/name, downloaded "
+        "once into the Hugging Face cache; needs the hf extra) or a folder saved with save_pretrained, an "
+        ".onnx file, or a .pt checkpoint of the built-in network.",
         show_default=f"models/{WEIGHTS['depth']}",
     ),
     depth_model_kind: str = typer.Option(
-        "metric", "--depth-model-kind", help="metric | relative | relative-inverse (ONNX models)."
+        None,
+        "--depth-model-kind",
+        help="metric | relative | relative-inverse: what the model predicts.",
+        show_default="the model's own (its config, the ONNX preset; metric)",
     ),
     relative_scale: float = typer.Option(None, "--relative-scale", help="Scale for a relative depth model."),
     relative_shift: float = typer.Option(None, "--relative-shift", help="Shift for a relative depth model."),
     partial_depth: Path = typer.Option(
         None, "--partial-depth", help="Sparse/partial depth map to align a relative model to."
+    ),
+    camera_height: float = typer.Option(
+        None,
+        "--camera-height",
+        help="The camera's height above the floor (m): scales a relative depth model so the floor lies that "
+        "far below the camera.",
+    ),
+    onnx_preset: str = typer.Option(
+        None,
+        "--onnx-preset",
+        help="Conventions of an ONNX depth model (docs/depth_models.md): depth-anything-v2, "
+        "depth-anything-v2-metric, midas-v21-small, midas-v21, midas-dpt.",
+    ),
+    depth_edges: bool = typer.Option(
+        True,
+        "--drop-depth-edges/--keep-depth-edges",
+        help="Leave out the points on discontinuities of depth estimated from RGB (smeared between objects).",
     ),
     workers: int = workers_option(),
     ray: bool = ray_option(),
@@ -192,7 +222,7 @@ def fit(
     options = dict(locals())  # the parameters named after FitConfig fields are its settings
     if depth is None and image is None:
         fail("give a depth map with --depth D.png or an RGB image (see cuboids fit --help)")
-    if depth_model_kind not in ("metric", "relative", "relative-inverse"):
+    if depth_model_kind not in (None, "metric", "relative", "relative-inverse"):
         fail(f"--depth-model-kind {depth_model_kind!r}: choose metric, relative or relative-inverse")
     config = fit_config(options)
     if solver == "onnx" and onnx is None:
@@ -224,12 +254,15 @@ def fit(
             from cuboidcli.factories import DepthModelOptions
 
             job.depth_model = DepthModelOptions(
-                None if depth_model is None else str(shipped_path(depth_model)),
+                _depth_model_path(depth_model, shipped_path),
                 depth_model_kind,
                 relative_scale,
                 relative_shift,
                 None if partial_depth is None else str(partial_depth),
                 config.device,
+                camera_height_m=camera_height,
+                onnx_preset=onnx_preset,
+                drop_edges=depth_edges,
             )
         if folder_input:
             engine = _Engine(workers, ray_at)

@@ -432,9 +432,9 @@ def check_alignment_args(kind: str, scale, shift, ref_depth, camera_height_m=Non
         )
     if not given and ref_depth is None and not height:
         raise ValueError(
-            f"a {kind} depth model gives depth only up to scale: it needs a scale (and shift), a partial "
-            "depth "
-            "map to align its output to, or the camera's height above the floor"
+            f"a {kind} depth model gives depth only up to scale: it needs a scale (--relative-scale), a "
+            "partial depth map to align its output to (--partial-depth), or the camera's height above the "
+            "floor (--camera-height)"
         )
     if shift is not None and scale is None:
         raise ValueError("a shift needs a scale as well (pass scale 1 for a shift alone)")

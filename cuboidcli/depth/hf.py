@@ -113,8 +113,7 @@ class HFDepthEstimator:
             archs = ", ".join(getattr(config, "architectures", None) or []) or "no architectures listed"
             raise ValueError(
                 f"depth model {self.name} is a {model_type} model ({archs}), not a supported "
-                "depth-estimation "
-                f"model; supported: {', '.join(ARCHITECTURES)}"
+                f"depth-estimation model; supported: {', '.join(ARCHITECTURES)}"
             )
         self.model_type = model_type
         self.native_kind, allowed = native_kind(config)
@@ -122,8 +121,7 @@ class HFDepthEstimator:
         if kind not in allowed:
             raise ValueError(
                 f"depth model {self.name} ({model_type}) predicts {self.native_kind} depth; "
-                f"kind {kind!r} does "
-                f"not apply (choose {' or '.join(allowed)})"
+                f"kind {kind!r} does not apply (choose {' or '.join(allowed)})"
             )
         self.scaling = DepthScaling(kind, scale, shift, ref_depth, camera_height_m)
         self.predicts_focal = model_type == "depth_pro" and bool(getattr(config, "use_fov_model", False))
@@ -131,7 +129,15 @@ class HFDepthEstimator:
         import torch
 
         self.device = torch.device(device)
-        net = self._load(transformers.AutoModelForDepthEstimation)
+        # transformers draws a bar while it copies the weights into the model (not the download's): noise
+        # between our own lines, and a second of work at most
+        bars = transformers.utils.logging.is_progress_bar_enabled()
+        transformers.utils.logging.disable_progress_bar()
+        try:
+            net = self._load(transformers.AutoModelForDepthEstimation)
+        finally:
+            if bars:
+                transformers.utils.logging.enable_progress_bar()
         self.net = net.to(self.device).eval()
 
     # --- loading -----------------------------------------------------------------------------------------
@@ -151,9 +157,8 @@ class HFDepthEstimator:
 
         offline = " (HF_HUB_OFFLINE is set: cache only)" if constants.HF_HUB_OFFLINE else ""
         return (
-            f"Hugging Face model {self.repo_id} is not in the cache {constants.HF_HUB_CACHE} "
-            "and could not be "
-            f"downloaded{offline}: run once online (HF_HUB_OFFLINE=0) to download it, and check the model id"
+            f"Hugging Face model {self.repo_id} is not in the cache {constants.HF_HUB_CACHE} and could not "
+            f"be downloaded{offline}: run once online (HF_HUB_OFFLINE=0) to download it, or check the model id"
         )
 
     def _load_processor(self, transformers):
