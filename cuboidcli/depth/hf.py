@@ -157,8 +157,9 @@ class HFDepthEstimator:
 
         offline = " (HF_HUB_OFFLINE is set: cache only)" if constants.HF_HUB_OFFLINE else ""
         return (
-            f"Hugging Face model {self.repo_id} is not in the cache {constants.HF_HUB_CACHE} and could not "
-            f"be downloaded{offline}: run once online (HF_HUB_OFFLINE=0) to download it, or check the model id"
+            f"Hugging Face model {self.repo_id} is not in the cache {constants.HF_HUB_CACHE} and could "
+            f"not be downloaded{offline}: run once online (HF_HUB_OFFLINE=0) to download it, or check the "
+            "model id"
         )
 
     def _load_processor(self, transformers):
