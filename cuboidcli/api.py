@@ -258,6 +258,35 @@ class Fitter:
         }
         return self._fit(depth_m, camera, rgb, meta, None, seed, progress)
 
+    def fit_photo(
+        self,
+        path: str | os.PathLike,
+        *,
+        intrinsics: str | None = None,
+        preset: str | None = None,
+        depth_model: str | None = None,
+        camera_height_m: float | None = None,
+        progress=None,
+    ) -> Result:
+        """Fit a photo as ``cuboids fit photo.jpg`` does: upright after its EXIF orientation, the camera
+        from ``intrinsics`` (``"fx,fy,cx,cy"`` or a JSON file) or ``preset``, else its EXIF, the depth
+        model or a 63 degree field of view (a warning), the depth from ``depth_model`` (None: the built-in
+        network; ``"hf:owner/name"``, a folder saved with save_pretrained, an .onnx or .pt file), which is
+        loaded once per process. ``camera_height_m`` scales a relative model. Raises ValueError for
+        unusable input; warnings (:class:`cuboidcli.io.depth.InputWarning`) for what the user should know."""
+        from cuboidcli.factories import DepthModelOptions
+        from cuboidcli.frame import load_frame
+        from cuboidcli.io.depth import warn_all
+        from cuboidcli.weights import shipped_path
+
+        model = depth_model
+        if model is not None and not str(model).startswith("hf:"):
+            model = str(shipped_path(model))
+        opts = DepthModelOptions(model, device=self.config.device, camera_height_m=camera_height_m)
+        frame = load_frame(None, path, intrinsics, preset, depth_model=opts)
+        warn_all(frame.notes)
+        return self.fit_frame(frame, progress=progress)
+
     def fit_frame(self, frame, *, progress=None) -> Result:
         """Fit a frame read by :func:`cuboidcli.frame.load_frame` (what ``cuboids fit`` does); its
         file names and, for RGB input, the depth estimation time go into the result."""

@@ -189,3 +189,29 @@ def test_a_12_megapixel_frame_is_fitted_on_the_papers_4800_points(room_depth, ny
     assert np.any(np.abs(centers[:, 2] - 4.5) < 0.1) and np.any(np.abs(centers[:, 1] - 1.4) < 0.1)
     # an explicit step still wins
     assert FitConfig(grid_step=8).step_for(3024, 4032) == 8
+
+
+def test_fit_photo_reads_the_camera_from_exif_and_warns_without_one(tmp_path):
+    """Fitter.fit_photo: a photo with a 35 mm equivalent focal length gets fx from it; one without any camera
+    information is fitted with the default field of view and one InputWarning."""
+    import warnings
+
+    from PIL import Image
+
+    from cuboidcli.io.depth import InputWarning
+
+    rgb = (np.random.default_rng(0).uniform(0, 255, (120, 160, 3))).astype(np.uint8)
+    exif = Image.Exif()
+    exif.get_ifd(0x8769)[41989] = 28
+    Image.fromarray(rgb).save(tmp_path / "exif.jpg", exif=exif)
+    Image.fromarray(rgb).save(tmp_path / "bare.jpg")
+    fitter = cb.Fitter(hypotheses=64, max_cuboids=1, align="free", theta=-1e9, device="cpu")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        res = fitter.fit_photo(tmp_path / "exif.jpg")
+    assert res.camera.fx == pytest.approx(28 / 36 * 160) and res.camera.cx == 79.5
+    assert res.record.input["intrinsics_source"] == "exif: FocalLengthIn35mmFilm 28 mm"
+    with pytest.warns(InputWarning, match="63 degree field of view") as caught:
+        bare = fitter.fit_photo(tmp_path / "bare.jpg")
+    assert len(caught) == 1 and len(bare.cuboids) == 1
+    assert bare.record.input["intrinsics_source"].startswith("default:")
