@@ -3,6 +3,7 @@ fit as a FitResult: what ``cuboids fit`` and a folder of frames run around :clas
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -105,6 +106,8 @@ def load_frame(
         "valid_fraction": round(float(valid_depth(depth).mean()), 6),
         "intrinsics_source": intr.source,
     }
+    if "edges_dropped" in timing:
+        meta["depth_edges_dropped"] = round(float(timing["edges_dropped"]), 6)
     return FrameInput(depth, camera, rgb, scale, notes, meta, timing.get("depth"))
 
 
@@ -154,14 +157,31 @@ def _estimate_depth(
             if not (depth > 0).any():
                 raise ValueError(f"{estimator.describe()}: the estimated depth has no positive values")
             intr = centred_intrinsics(focal, w, h, f"depth model: {estimator.describe()}")
-            return depth, estimator.describe(), intr
+            source = estimator.describe()
+            return _edges_dropped(depth, intr, opts, source, timing), source, intr
         if intr is None:
             intr = default_camera(w, h)
             notes.append(_guessed(intr))
         depth, source = estimate_depth(estimator, rgb, intr.camera(w, h), timing)
-        return depth, source, intr
+        return _edges_dropped(depth, intr, opts, source, timing), source, intr
     except (ValueError, FileNotFoundError, ImportError) as e:
         raise InputError(str(e)) from e
+
+
+def _edges_dropped(depth: np.ndarray, intr: Intrinsics, opts: DepthModelOptions, source: str, timing: dict):
+    """The estimate without its pixels on depth discontinuities when ``opts.drop_edges`` asks for it (the
+    time counts as part of the depth stage); ``timing["edges_dropped"]`` gets the share of pixels left out."""
+    if not opts.drop_edges:
+        return depth
+    from cuboidcli.depth.edges import drop_depth_edges
+
+    t0 = time.perf_counter()
+    depth, dropped = drop_depth_edges(depth, focal_px=math.sqrt(intr.fx * intr.fy))
+    timing["depth"] = timing.get("depth", 0.0) + time.perf_counter() - t0
+    timing["edges_dropped"] = dropped
+    if not (depth > 0).any():
+        raise ValueError(f"{source}: no depth is left after dropping its edges (try --keep-depth-edges)")
+    return depth
 
 
 def make_result(
