@@ -10,7 +10,6 @@ from dataclasses import replace
 import cv2
 import numpy as np
 import pytest
-from cuboidcli.io.photo import DEFAULT_FOV_DEG
 
 from cuboidcli.camera import PRESETS, Camera
 from cuboidcli.cuboid import Cuboid
@@ -20,6 +19,7 @@ from cuboidcli.fitting.pipeline import FitInfo
 from cuboidcli.frame import load_frame, make_result, resolve_depth_scale, same_settings
 from cuboidcli.geometry.gravity import given_gravity
 from cuboidcli.io.depth import InputError, Intrinsics
+from cuboidcli.io.photo import DEFAULT_FOV_DEG
 from cuboidcli.io.result import read_result, write_result
 
 H, W = 48, 64
