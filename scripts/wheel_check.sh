@@ -36,8 +36,20 @@ run venv/bin/cuboids fit --depth d.png --preset nyu --sampler learned --solver n
 run venv/bin/cuboids export --onnx s.onnx
 run venv/bin/cuboids fit --depth d.png --preset nyu --solver onnx --onnx s.onnx --hypotheses 512 -o o.json -q
 run venv/bin/cuboids fit rgb.png -K 518.86,519.47,325.58,253.74 --hypotheses 512 -o r.json -q
+# A photo without any camera information: fitted with the default field of view and one warning.
+run venv/bin/cuboids fit rgb.png --hypotheses 512 -o p.json -q
+# A Hugging Face model without the hf extra: one line naming the extra, exit 2, nothing written.
+set +e
+venv/bin/cuboids fit rgb.png --depth-model hf:depth-anything/Depth-Anything-V2-Metric-Indoor-Small-hf -o h.json -q \
+  > h.out 2>&1
+rc=$?
+set -e
+cat h.out
+test "$rc" = 2 && grep -q "cuboids\[hf\]" h.out && test ! -e h.json
 venv/bin/python - <<'PY'
 import json
+
+assert json.load(open("p.json"))["input"]["intrinsics_source"].startswith("default:")
 
 for name in ("n.json", "o.json", "r.json"):
     d = json.load(open(name))
