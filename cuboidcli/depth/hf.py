@@ -144,10 +144,19 @@ class HFDepthEstimator:
 
     def _load(self, auto_class):
         """``auto_class.from_pretrained(source)`` with the user-facing one-line errors."""
+        import logging
+
+        # Without a network huggingface_hub logs every retry (five, over ~25 s) before it gives up; the
+        # user gets our one line instead. Its download progress bars are not log records and still show.
+        hub_log = logging.getLogger("huggingface_hub")
+        level = hub_log.level
+        hub_log.setLevel(max(level, logging.ERROR))
         try:
             return auto_class.from_pretrained(self.source)
         except (OSError, ValueError, KeyError) as e:
             raise ValueError(self._load_error(e)) from e
+        finally:
+            hub_log.setLevel(level)
 
     def _load_error(self, e: Exception) -> str:
         first = (str(e).strip().splitlines() or [type(e).__name__])[0]
@@ -158,8 +167,8 @@ class HFDepthEstimator:
         offline = " (HF_HUB_OFFLINE is set: cache only)" if constants.HF_HUB_OFFLINE else ""
         return (
             f"Hugging Face model {self.repo_id} is not in the cache {constants.HF_HUB_CACHE} and could "
-            f"not be downloaded{offline}: run once online (HF_HUB_OFFLINE=0) to download it, or check the "
-            "model id"
+            f"not be downloaded{offline}: run once with a network connection (and without HF_HUB_OFFLINE=1) "
+            "to download it, or check the model id"
         )
 
     def _load_processor(self, transformers):
