@@ -103,9 +103,13 @@ def _csv_text(rows: list[dict]) -> str:
     return buf.getvalue()
 
 
-def write_outputs(report: EvalReport, out_dir: str | os.PathLike, meta: dict | None = None) -> list[Path]:
+def write_outputs(
+    report: EvalReport, out_dir: str | os.PathLike, meta: dict | None = None, frames=None
+) -> list[Path]:
     """Write ``metrics.json`` (aggregates, per-frame rows, per-cuboid rows, config, provenance),
-    ``frames.csv`` and, when the shape measurements were made, ``cuboids.csv``."""
+    ``frames.csv``, when the shape measurements were made ``cuboids.csv``, and ``report.html``
+    (:mod:`.report`; skipped without plotly). ``frames`` (the evaluated frames) lets the report draw the
+    worst frames' panels from saved fits."""
     out_dir = Path(out_dir)
     rows = frame_rows(report)
     per_cuboid = cuboid_rows(report)
@@ -128,4 +132,10 @@ def write_outputs(report: EvalReport, out_dir: str | os.PathLike, meta: dict | N
     paths.append(atomic_write_text(out_dir / "frames.csv", _csv_text(rows)))
     if per_cuboid:
         paths.append(atomic_write_text(out_dir / "cuboids.csv", _csv_text(per_cuboid)))
+    from cuboidcli.evaluation.report import write_report
+
+    try:
+        paths.append(write_report(report, out_dir, meta, frames))
+    except ImportError:  # plotly (the viz extra) is not installed: the numbers are written, the page is not
+        pass
     return paths
