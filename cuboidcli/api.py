@@ -153,13 +153,15 @@ class Result:
         ply: bool = False,
         overlay: bool = False,
         with_points: bool = False,
+        scenes: tuple[str, ...] = (),
     ) -> list[Path]:
-        """The JSON and, beside it, the outputs ``cuboids fit`` writes with --glb, --ply, --overlay.
+        """The JSON and, beside it, the outputs ``cuboids fit`` writes with --glb, --ply, --overlay and the
+        scene files of ``scenes`` (kinds of :data:`cuboidcli.export.SCENES`: ``"html"``, ...).
 
         The JSON is written last (each file atomically): where it exists, the frame's outputs are complete.
         Returns the paths, the JSON first."""
         written = []
-        if glb or ply or overlay:
+        if glb or ply or overlay or scenes:
             from cuboidcli.export import write_outputs
 
             stem = Path(json_path).with_name(Path(json_path).name.removesuffix(".json"))
@@ -172,6 +174,7 @@ class Result:
                 ply=ply,
                 overlay=overlay,
                 with_points=with_points,
+                scenes=tuple(scenes),
             )
             written += list(paths.values())
         return [self.save_json(json_path), *written]

@@ -34,6 +34,8 @@ class FolderJob:
     ply: bool = False
     overlay: bool = False
     with_points: bool = False
+    scenes: tuple[str, ...] = ()
+    """Scene files written beside each JSON (kinds of :data:`cuboidcli.export.SCENES`)."""
 
     def outputs(self, out_json: Path) -> list[Path]:
         """The files a complete frame has, the JSON last (see :meth:`cuboidcli.api.Result.save`)."""
@@ -45,6 +47,10 @@ class FolderJob:
             extra += [Path(f"{stem}_points.ply"), Path(f"{stem}_cuboids.ply")]
         if self.overlay:
             extra += [Path(f"{stem}_{k}.png") for k in ("overlay", "labels", "labels_color", "panel")]
+        if self.scenes:
+            from cuboidcli.export import scene_path
+
+            extra += [scene_path(stem, kind) for kind in self.scenes]
         return [*extra, out_json]
 
 
@@ -89,7 +95,14 @@ def fit_file(job: FolderJob, source: str, out_json: str) -> Outcome:
                 depth, image, job.intrinsics, job.preset, job.depth_scale, depth_model=job.depth_model
             )
             result = fitter.fit_frame(frame)
-            result.save(out_json, glb=job.glb, ply=job.ply, overlay=job.overlay, with_points=job.with_points)
+            result.save(
+                out_json,
+                glb=job.glb,
+                ply=job.ply,
+                overlay=job.overlay,
+                with_points=job.with_points,
+                scenes=job.scenes,
+            )
     except Exception as e:  # this frame fails; the run goes on
         return failed(name, e)
     notes = frame.notes + [str(w.message) for w in caught]

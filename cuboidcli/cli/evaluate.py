@@ -368,7 +368,7 @@ def evaluate(
                 "frames_done": report.counts.done,
                 "frames_skipped": report.counts.skipped,
             }
-            for p in write_outputs(report, output, meta):
+            for p in write_outputs(report, output, meta, frames=frame_list):
                 out.print(f"wrote {p}")
             if save_fits:
                 out.print(f"wrote {report.counts.done} fits under {output / 'fits'}")

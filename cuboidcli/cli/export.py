@@ -54,6 +54,12 @@ def export(
         None, "--depth-scale", help="Metres per depth-PNG unit; default: the result's, else 0.001."
     ),
     with_points: bool = typer.Option(False, "--with-points", help="Add the input point cloud to the GLB."),
+    html: Path | None = typer.Option(
+        None,
+        "--html",
+        help="Write a self-contained page that opens offline: a 3D view of the points and boxes, the overlay "
+        "panel and a table of the cuboids (needs the viz extra).",
+    ),
     step: int = typer.Option(
         None,
         "--step",
@@ -68,11 +74,20 @@ def export(
     opset: int = typer.Option(17, "--opset", help="ONNX opset for --onnx."),
 ) -> None:
     """Convert a saved result to files other tools open, or export the neural solver to ONNX."""
-    wants_files = any(p is not None for p in (glb, ply, obj, overlay))
+    scenes = {kind: path for kind, path in (("html", html),) if path is not None}
+    wants_files = any(p is not None for p in (glb, ply, obj, overlay)) or bool(scenes)
     if onnx is None and not wants_files:
-        fail("nothing to export: pass --glb, --ply, --obj or --overlay (with RESULT.json), or --onnx PATH")
+        fail(
+            "nothing to export: pass --glb, --ply, --obj, --overlay or --html (with RESULT.json), or "
+            "--onnx PATH"
+        )
     if wants_files and result_json is None:
-        fail("--glb/--ply/--obj/--overlay convert a result: pass RESULT.json first")
+        fail("--glb/--ply/--obj/--overlay/--html convert a result: pass RESULT.json first")
+    for kind in scenes:
+        from cuboidcli.export import missing_extra
+
+        if missing_extra(kind):
+            fail(missing_extra(kind))
     if weights is not None and onnx is None:
         fail("--weights only applies to --onnx PATH")
     if with_points and glb is None:
@@ -80,7 +95,9 @@ def export(
     if onnx is not None:
         _export_onnx(onnx, weights, opset)
     if wants_files:
-        _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step)
+        _export_result(
+            result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step, scenes
+        )
 
 
 def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
@@ -103,7 +120,9 @@ def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
     out.print(f"wrote {path}", highlight=False)
 
 
-def _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step) -> None:
+def _export_result(
+    result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step, scenes
+) -> None:
     from cuboidcli.export import export_result
     from cuboidcli.io.depth import read_depth
     from cuboidcli.io.result import read_result
@@ -134,8 +153,9 @@ def _export_result(result_json, glb, ply, obj, overlay, image, depth, depth_scal
                 rgb=rgb,
                 with_points=with_points,
                 point_step=step,
+                scenes=scenes,
             )
-        except (ValueError, OSError) as e:
+        except (ValueError, OSError, ImportError) as e:
             fail(str(e))
     for path in written.values():
         out.print(f"wrote {path}", highlight=False)

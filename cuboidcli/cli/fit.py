@@ -47,6 +47,7 @@ class FitJob:
     overlay: bool = False
     with_points: bool = False
     depth_model: object = None
+    scenes: tuple[str, ...] = ()
 
     def run(self, depth: Path | None, image: Path | None, progress=None):
         """Fit one frame; returns the api Result."""
@@ -66,7 +67,12 @@ class FitJob:
 
     def write(self, result, out_json: Path) -> list[Path]:
         return result.save(
-            out_json, glb=self.glb, ply=self.ply, overlay=self.overlay, with_points=self.with_points
+            out_json,
+            glb=self.glb,
+            ply=self.ply,
+            overlay=self.overlay,
+            with_points=self.with_points,
+            scenes=self.scenes,
         )
 
     def folder_job(self) -> FolderJob:
@@ -83,7 +89,18 @@ class FitJob:
             ply=self.ply,
             overlay=self.overlay,
             with_points=self.with_points,
+            scenes=self.scenes,
         )
+
+
+def _check_extras(scenes: tuple[str, ...]) -> None:
+    """Refuse, before any fitting, scene outputs whose optional library is missing (one line naming it)."""
+    from cuboidcli.export import missing_extra
+
+    for kind in scenes:
+        message = missing_extra(kind)
+        if message:
+            fail(message)
 
 
 def _depth_model_path(model: str | None, shipped_path) -> str | None:
@@ -172,6 +189,9 @@ def fit(
     ply: bool = typer.Option(False, "--ply", help="Also write <out>_points.ply and <out>_cuboids.ply."),
     overlay: bool = typer.Option(False, "--overlay", help="Also write overlay, label and panel PNGs."),
     with_points: bool = typer.Option(False, "--with-points", help="Include the point cloud in the GLB."),
+    html: bool = typer.Option(
+        False, "--html", help="Also write <out>.html: a 3D view and table of the cuboids that opens offline."
+    ),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Print only errors."),
     depth_model: str = typer.Option(
         None,
@@ -250,7 +270,9 @@ def fit(
             fitter = fitter_for(config, _str_or_none(weights), _str_or_none(onnx))
         except (ValueError, FileNotFoundError, ImportError) as e:
             fail(str(e))
-        job = FitJob(intrinsics, preset, depth_scale, fitter, glb, ply, overlay, with_points)
+        scenes = tuple(kind for kind, wanted in (("html", html),) if wanted)
+        _check_extras(scenes)
+        job = FitJob(intrinsics, preset, depth_scale, fitter, glb, ply, overlay, with_points, scenes=scenes)
         if depth is None:
             from cuboidcli.factories import DepthModelOptions
 

@@ -46,6 +46,10 @@ __all__ = [
     "ply_paths",
     "raycast",
     "render_images",
+    "SCENES",
+    "SCENE_EXTRAS",
+    "missing_extra",
+    "scene_path",
     "write_cuboid_ply",
     "write_glb",
     "write_obj",
@@ -54,7 +58,50 @@ __all__ = [
     "write_result_glb",
     "write_result_images",
     "write_result_ply",
+    "write_scene",
 ]
+
+
+#: Scene files other tools open, by kind: the file name beside a result (``<stem>`` + this) that ``cuboids
+#: fit --KIND`` writes, and the module and function that write one (imported when used: each needs an
+#: optional extra).
+SCENES: dict[str, tuple[str, str, str]] = {
+    "html": (".html", "cuboidcli.export.html", "write_html"),
+}
+#: The library each scene kind needs and the extra that installs it.
+SCENE_EXTRAS: dict[str, tuple[str, str]] = {
+    "html": ("plotly", "viz"),
+}
+
+
+def missing_extra(kind: str) -> str | None:
+    """A one-line message when the library scene ``kind`` needs is not installed, else None."""
+    import importlib.util
+
+    module, extra = SCENE_EXTRAS[kind]
+    if importlib.util.find_spec(module) is None:
+        return f"--{kind} needs the optional extra: pip install 'cuboids[{extra}]' ({module} is missing)"
+    return None
+
+
+def scene_path(stem: str | Path, kind: str) -> Path:
+    """Where ``cuboids fit --KIND`` writes scene ``kind`` of the result ``<stem>.json``."""
+    return Path(f"{stem}{SCENES[kind][0]}")
+
+
+def write_scene(
+    kind: str, result: FitResult, path: str | Path, *, depth_m: np.ndarray | None = None, rgb=None
+) -> Path:
+    """Write scene ``kind`` (a key of :data:`SCENES`) of ``result`` to ``path``; ``depth_m`` and ``rgb``, when
+    given, add the points and the image where the format holds them. ImportError (one line naming the
+    extra) when the library it needs is missing; ValueError for a result it cannot hold."""
+    import importlib
+
+    if kind not in SCENES:
+        raise ValueError(f"unknown scene kind {kind!r}; choose {', '.join(SCENES)}")
+    _, module, function = SCENES[kind]
+    writer = getattr(importlib.import_module(module), function)
+    return Path(writer(result, path, depth_m=depth_m, rgb=rgb))
 
 
 def _sibling(path: Path, drop_suffix: str, name: str, ext: str) -> Path:
@@ -212,8 +259,10 @@ def export_result(
     rgb: np.ndarray | None = None,
     with_points: bool = False,
     point_step: int | None = None,
+    scenes: dict[str, str | Path] | None = None,
 ) -> dict[str, Path]:
-    """Write each output whose path is given; returns {output kind: path}.
+    """Write each output whose path is given; returns {output kind: path}. ``scenes``: {kind of
+    :data:`SCENES`: path} of scene files (HTML viewer, simulator scenes, recordings) to write too.
 
     ``glb_path``: the GLB (``with_points`` adds the depth map's points). ``ply_path``: the point cloud PLY,
     with the cuboid meshes in ``<name>_cuboids.ply`` beside it (see :func:`ply_paths`; needs ``depth_m``).
@@ -248,6 +297,8 @@ def export_result(
         written["obj"], written["mtl"] = write_obj(obj_path, result.cuboids)
     if overlay_path is not None:
         written.update(write_result_images(result, overlay_path, rgb=rgb, depth_m=depth_m))
+    for kind, path in (scenes or {}).items():
+        written[kind] = write_scene(kind, result, path, depth_m=depth_m, rgb=rgb)
     return written
 
 
@@ -263,12 +314,14 @@ def write_outputs(
     overlay: bool = False,
     with_points: bool = False,
     point_step: int | None = None,
+    scenes: tuple[str, ...] = (),
 ) -> dict[str, Path]:
     """Write the requested outputs next to ``out_stem`` (e.g. ``out/scene`` for ``out/scene.json``).
 
     ``glb``: <stem>.glb (``with_points`` adds the depth map's points). ``ply``: <stem>_points.ply and
     <stem>_cuboids.ply (needs ``depth_m``). ``obj``: <stem>.obj + <stem>.mtl. ``overlay``: <stem>_overlay.png,
-    <stem>_labels.png, <stem>_labels_color.png, <stem>_panel.png. ``depth_m`` (H, W) metres and ``rgb``
+    <stem>_labels.png, <stem>_labels_color.png, <stem>_panel.png. ``scenes``: kinds of :data:`SCENES`, each
+    to :func:`scene_path`. ``depth_m`` (H, W) metres and ``rgb``
     (H, W, 3) uint8 must match the result's camera size; points use every ``point_step``-th pixel (None:
     :func:`cloud_step`).
     Returns {output kind: path}; see :func:`export_result`.
@@ -286,4 +339,5 @@ def write_outputs(
         rgb=rgb,
         with_points=with_points,
         point_step=point_step,
+        scenes={kind: scene_path(base, kind) for kind in scenes},
     )

@@ -202,3 +202,21 @@ def test_export_onnx(app, tmp_path):
     assert res.exit_code == 0, res.output
     model = onnx.load(str(tmp_path / "solver.onnx"))
     assert any(op.version == 17 for op in model.opset_import if op.domain in ("", "ai.onnx"))
+
+
+def test_html_page_from_a_result_and_a_missing_extra_is_one_line(app, inputs, monkeypatch):
+    """--html writes the viewer page (points from the depth map, boxes, table); without its library the
+    command stops with one line naming the extra and writes nothing."""
+    pytest.importorskip("plotly")
+    d = inputs
+    args = ["export", str(d / "result.json"), "--depth", str(d / "depth.png"), "--html", str(d / "v.html")]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 0, res.output
+    page = (d / "v.html").read_text()
+    assert "plotly" in page.lower() and "<script src=" not in page and page.count("<tr") >= 4  # header + 3
+    from cuboidcli import export
+
+    monkeypatch.setitem(export.SCENE_EXTRAS, "html", ("no_such_plotting_library", "viz"))
+    res = runner.invoke(app, [*args[:-1], str(d / "w.html")])
+    assert res.exit_code == 2 and not (d / "w.html").exists()
+    assert "--html needs the optional extra: pip install 'cuboids[viz]'" in " ".join(res.output.split())

@@ -341,3 +341,13 @@ def test_a_phone_photo_is_fitted_upright_with_the_camera_of_its_exif(tmp_path, t
     d = json.loads((tmp_path / "bare.json").read_text())
     assert d["input"]["intrinsics_source"].startswith("default: 63 degree")
     assert d["camera"]["cx"] == 59.5 and len(d["cuboids"]) == 1
+
+
+def test_fit_writes_the_html_page_beside_the_json(tmp_path, room_png):
+    pytest.importorskip("plotly")
+    out = tmp_path / "room.json"
+    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--html", *FAST)
+    assert r.exit_code == 0, r.output
+    page = (tmp_path / "room.html").read_text()
+    assert "room.html" in "".join(r.output.split())  # listed among the files written
+    assert "<script src=" not in page and "Mesh3d".lower() in page.lower()
