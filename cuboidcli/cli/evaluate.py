@@ -250,10 +250,11 @@ def evaluate(
     rgb: bool = typer.Option(
         False, "--rgb", help="Fit to depth estimated from each RGB image; score against the true depth."
     ),
-    depth_model: Path = typer.Option(
+    depth_model: str = typer.Option(
         None,
         "--depth-model",
-        help="With --rgb: depth net .pt (built-in) or metric .onnx.",
+        help="With --rgb: the depth model, as cuboids fit takes it: hf:owner/name, a save_pretrained "
+        "folder, a metric .onnx or a .pt of the built-in network.",
         show_default="shipped",
     ),
     align: str = override_option("align", of=PRESET),
@@ -282,14 +283,15 @@ def evaluate(
         fail("--fits evaluates fixed cuboids: drop --runs and --save-fits")
     if weights is not None:
         weights = shipped_path(weights)
-    if depth_model is not None:
+    hub_model = depth_model is not None and depth_model.startswith("hf:")
+    if depth_model is not None and not hub_model:
         depth_model = shipped_path(depth_model)
     if weights is not None and not weights.exists():
         fail(f"--weights {weights}: no such folder or file")
     if depth_model is not None and not rgb:
         fail("--depth-model applies to --rgb (fitting from the RGB images)")
-    if depth_model is not None and not depth_model.is_file():
-        fail(f"--depth-model {depth_model}: no such file")
+    if depth_model is not None and not hub_model and not depth_model.exists():
+        fail(f"--depth-model {depth_model}: no such file or folder")
     if rgb and fits is not None:
         fail("--fits evaluates saved cuboids: drop --rgb")
     names = _parse_list(frames, "--frames", str) if frames is not None else None
@@ -364,7 +366,9 @@ def evaluate(
                 "fits_dir": None if fits is None else str(fits.resolve()),
                 "weights_dir": None if weights is None else str(weights.resolve()),
                 "input": "rgb" if rgb else "depth",
-                "depth_model": None if depth_model is None else str(depth_model.resolve()),
+                "depth_model": None
+                if depth_model is None
+                else (str(depth_model) if hub_model else str(depth_model.resolve())),
                 "frames_done": report.counts.done,
                 "frames_skipped": report.counts.skipped,
             }
