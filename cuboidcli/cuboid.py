@@ -41,6 +41,10 @@ def palette_color(i: int) -> tuple[int, int, int]:
     return PALETTE[i % len(PALETTE)]
 
 
+#: What a cuboid is in the room (Cuboid.kind): the room's shell, or anything else.
+KINDS = ("floor", "wall", "ceiling", "object")
+
+
 @dataclass
 class Cuboid:
     """One oriented box. ``center`` (3,), ``half_size`` (3,), ``rotation`` (3, 3), float64 numpy."""
@@ -50,8 +54,12 @@ class Cuboid:
     rotation: np.ndarray
     inlier_gain: float | None = None
     extras: dict = field(default_factory=dict)
+    kind: str = "object"
+    """What the box is in the room: ``floor``, ``wall``, ``ceiling`` or ``object`` (:data:`KINDS`)."""
 
     def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise ValueError(f"cuboid kind {self.kind!r}: choose {', '.join(KINDS)}")
         self.center = np.asarray(self.center, dtype=np.float64).reshape(3)
         self.half_size = np.asarray(self.half_size, dtype=np.float64).reshape(3)
         self.rotation = np.asarray(self.rotation, dtype=np.float64).reshape(3, 3)
@@ -83,14 +91,19 @@ class Cuboid:
             "inlier_gain": None if self.inlier_gain is None else float(self.inlier_gain),
         }
 
+    def name(self, index: int) -> str:
+        """The box's name in every scene file (GLB, MJCF, URDF, USD, rerun, HTML): floor_00, wall_01,
+        object_05 (``index``: its position in the list)."""
+        return f"{self.kind}_{index:02d}"
+
     def to_json(self, index: int) -> dict:
-        d = {"id": index, **self.parameters_json(), "color": list(palette_color(index))}
+        d = {"id": index, "kind": self.kind, **self.parameters_json(), "color": list(palette_color(index))}
         d.update(self.extras)
         return d
 
     @classmethod
     def from_json(cls, d: dict) -> Cuboid:
-        known = {"id", "center", "half_size", "rotation", "quat_wxyz", "inlier_gain", "color"}
+        known = {"id", "kind", "center", "half_size", "rotation", "quat_wxyz", "inlier_gain", "color"}
         extras = {k: v for k, v in d.items() if k not in known}
         if "rotation" in d:
             rot = np.asarray(d["rotation"], dtype=np.float64)
@@ -98,7 +111,10 @@ class Cuboid:
             rot = quaternion_to_matrix(torch.tensor(d["quat_wxyz"], dtype=torch.float64)).numpy()
         else:
             raise ValueError("cuboid entry has neither 'rotation' nor 'quat_wxyz'")
-        return cls(d["center"], d["half_size"], rot, d.get("inlier_gain"), extras)
+        kind = d.get("kind", "object")  # results written before kinds existed hold objects only
+        if kind not in KINDS:
+            raise ValueError(f"cuboid kind {kind!r}: expected one of {', '.join(KINDS)}")
+        return cls(d["center"], d["half_size"], rot, d.get("inlier_gain"), extras, kind)
 
 
 def stack_cuboids(cuboids: list[Cuboid], dtype=torch.float32, device="cpu") -> tuple[torch.Tensor, ...]:

@@ -26,9 +26,10 @@ from cuboidcli.io.atomic import atomic_write
 OPENCV_TO_GLTF: np.ndarray = np.diag([1.0, -1.0, -1.0])
 
 
-def node_name(index: int) -> str:
-    """Name of the glTF node holding cuboid ``index``: cuboid_00, cuboid_01, ..."""
-    return f"cuboid_{index:02d}"
+def node_name(cuboids: list[Cuboid], index: int) -> str:
+    """Name of the node holding cuboid ``index`` of ``cuboids``: its scene name (:meth:`Cuboid.name`,
+    floor_00, wall_01, object_02, ...), the same in every scene file."""
+    return cuboids[index].name(index)
 
 
 def level_rotation(up: np.ndarray | None) -> np.ndarray:
@@ -89,7 +90,7 @@ def build_scene(
         vertices, faces, normals = flat_box(cub.half_size)
         rgb = np.array(palette_color(k), dtype=np.float64) / 255.0
         material = PBRMaterial(
-            name=f"{node_name(k)}_material",
+            name=f"{node_name(cuboids, k)}_material",
             baseColorFactor=[float(rgb[0]), float(rgb[1]), float(rgb[2]), float(alpha)],
             metallicFactor=0.0,
             roughnessFactor=0.8,
@@ -105,8 +106,8 @@ def build_scene(
         )
         scene.add_geometry(
             mesh,
-            node_name=node_name(k),
-            geom_name=node_name(k),
+            node_name=node_name(cuboids, k),
+            geom_name=node_name(cuboids, k),
             transform=node_matrix(cub, up),
             metadata=node_extras(cub, k),
         )

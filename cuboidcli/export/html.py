@@ -42,48 +42,10 @@ def import_plotly():
     return go
 
 
-#: OpenCV camera (x right, y down, z forward) -> a z-up frame looking along +y, used without gravity.
-_CAMERA_TO_ZUP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
-
-
-def _fallback_world_from_camera(result) -> tuple[np.ndarray, bool]:
-    from cuboidcli.geometry.gravity import smallest_rotation
-
-    pose = np.eye(4)
-    known = result.extras.get("world_from_camera")
-    if known is not None:
-        return np.asarray(known, dtype=np.float64).reshape(4, 4), True
-    down = (result.extras.get("gravity") or {}).get("down")
-    pose[:3, :3] = _CAMERA_TO_ZUP
-    if down is None:
-        return pose, False
-    up = _CAMERA_TO_ZUP @ -np.asarray(down, dtype=np.float64)
-    pose[:3, :3] = smallest_rotation(up / np.linalg.norm(up), np.array([0.0, 0.0, 1.0])) @ _CAMERA_TO_ZUP
-    return pose, True
-
-
-def _fallback_world_boxes(result) -> list[tuple]:
-    pose, _ = _fallback_world_from_camera(result)
-    rot, t = pose[:3, :3], pose[:3, 3]
-    return [
-        (
-            f"{getattr(c, 'kind', None) or 'cuboid'}_{i:02d}",
-            rot @ c.center + t,
-            c.half_size,
-            rot @ c.rotation,
-            (*palette_color(i), 255),
-        )
-        for i, c in enumerate(result.cuboids)
-    ]
-
-
 def _scene(result):
     """(world_from_camera (4, 4), has_gravity, [(name, center, half_size, rotation, rgb)]) in the world
     frame of :mod:`cuboidcli.export.scene`; rgb is the overlays' palette colour of each cuboid."""
-    try:
-        from cuboidcli.export.scene import world_boxes, world_from_camera
-    except ImportError:  # until the shared scene module is merged: the same frame, computed here
-        world_boxes, world_from_camera = _fallback_world_boxes, _fallback_world_from_camera
+    from cuboidcli.export.scene import world_boxes, world_from_camera
 
     pose, has_gravity = world_from_camera(result)
     boxes = [

@@ -27,7 +27,7 @@ def obj_text(cuboids: list[Cuboid], mtl_name: str) -> str:
         corners = gltf_points(cub.corners())
         # A proper rotation (F R) maps local normals; the frame flip F keeps winding because F is a rotation.
         normals = gltf_points(SIDE_NORMALS @ cub.rotation.T)
-        lines += [f"o {node_name(k)}", f"usemtl {node_name(k)}"]
+        lines += [f"o {node_name(cuboids, k)}", f"usemtl {node_name(cuboids, k)}"]
         lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in corners]
         lines += [f"vn {x:.6f} {y:.6f} {z:.6f}" for x, y, z in normals]
         v0, n0 = 8 * k + 1, 6 * k + 1
@@ -36,13 +36,13 @@ def obj_text(cuboids: list[Cuboid], mtl_name: str) -> str:
     return "\n".join(lines) + "\n"
 
 
-def mtl_text(n_cuboids: int) -> str:
-    """Material library with one diffuse colour per cuboid (palette order)."""
+def mtl_text(cuboids: list[Cuboid]) -> str:
+    """Material library with one diffuse colour per cuboid (palette order), named like the cuboids."""
     lines = ["# cuboids materials, palette order"]
-    for k in range(n_cuboids):
+    for k in range(len(cuboids)):
         r, g, b = (np.array(palette_color(k)) / 255.0).tolist()
         lines += [
-            f"newmtl {node_name(k)}",
+            f"newmtl {node_name(cuboids, k)}",
             f"Kd {r:.4f} {g:.4f} {b:.4f}",
             "Ka 0 0 0",
             "Ks 0 0 0",
@@ -57,6 +57,6 @@ def write_obj(path: str | os.PathLike, cuboids: list[Cuboid]) -> tuple[Path, Pat
     """Write ``path`` (.obj) and its material library beside it (same name, .mtl), atomically each."""
     path = Path(path)
     mtl = path.with_name(path.stem + ".mtl")
-    atomic_write_text(mtl, mtl_text(len(cuboids)))
+    atomic_write_text(mtl, mtl_text(cuboids))
     atomic_write_text(path, obj_text(cuboids, mtl.name))
     return path, mtl

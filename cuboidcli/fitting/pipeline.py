@@ -21,7 +21,7 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import OCCLUDED, assign_points
 from cuboidcli.fitting.backend import NumbaBackend, ScoreParams, ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.winner import Alignment, align_winner, refine_winner, values_one
+from cuboidcli.fitting.winner import Alignment, align_winner, cuboid_kind, refine_winner, values_one
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.sampling import (
@@ -373,6 +373,11 @@ def fit_depth(
         timing["gravity"] = time.perf_counter() - t
     cuboids, info = fit_points(prep, config, solver, sampler, progress, timing, alignment)
     info.gravity = gravity
+    # What each box is (floor, wall, ceiling, object); without gravity the camera's y axis stands for down.
+    down = gravity.down if gravity is not None else np.array([0.0, 1.0, 0.0])
+    points = prep.points.double().cpu().numpy()
+    for c in cuboids:
+        c.kind = cuboid_kind(points, c, np.asarray(down, dtype=np.float64))
     if warning:
         info.warnings.append(warning)
     timing["total"] = time.perf_counter() - t0

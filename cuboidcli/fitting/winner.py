@@ -11,11 +11,13 @@ left out (None), the default backend of the points' device.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
+from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.backend import ScoreParams, ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.gravity import level_frame, manhattan_rotation, upright_rotation
@@ -412,6 +414,26 @@ def is_room_slab(points: np.ndarray, center: np.ndarray, half: np.ndarray, rotat
     no labels; a slab on furniture standing against a wall (a bookcase's side) can pass it too."""
     k = thin_axis(np.asarray(half, dtype=np.float64))
     return k >= 0 and beyond_share(points, center, half, rotation, k) <= ROOM_SHARE
+
+
+#: A room slab is a floor or ceiling when its thickness axis is within this angle of gravity, a wall when
+#: within it of horizontal; between the two it stays an object (a ramp, a tilted panel).
+KIND_ANGLE_DEG = 20.0
+
+
+def cuboid_kind(points: np.ndarray, cuboid: Cuboid, down: np.ndarray) -> str:
+    """floor, wall, ceiling or object: a slab of the room's shell (:func:`is_room_slab` against the frame's
+    ``points`` (N, 3)) by the direction of its thickness against ``down`` (3,), unit, camera coordinates:
+    level and below the camera a floor, level and above it a ceiling, upright a wall."""
+    c, a, R = cuboid.center, cuboid.half_size, cuboid.rotation
+    if not is_room_slab(points, c, a, R):
+        return "object"
+    cos = abs(float(R[:, thin_axis(a)] @ down))
+    if cos >= math.cos(math.radians(KIND_ANGLE_DEG)):
+        return "floor" if float(c @ down) > 0 else "ceiling"
+    if cos <= math.sin(math.radians(KIND_ANGLE_DEG)):
+        return "wall"
+    return "object"
 
 
 def edge_to_vertical(rot: np.ndarray, k: int, alignment: Alignment) -> np.ndarray | None:

@@ -92,7 +92,7 @@ def test_export_all_formats(app, inputs):
         assert (d / name).is_file(), name
         assert f"wrote {d / name}" in res.output.replace("\n", "")
     scene = trimesh.load(d / "o.glb")
-    assert sorted(scene.graph.nodes_geometry) == ["cuboid_00", "cuboid_01", "cuboid_02", "points"]
+    assert sorted(scene.graph.nodes_geometry) == ["object_00", "object_01", "object_02", "points"]
     assert len(trimesh.load(d / "o.ply").vertices) == CAM.width * CAM.height
     labels = cv2.imread(str(d / "o_labels.png"), cv2.IMREAD_UNCHANGED)
     assert np.array_equal(labels.astype(int) - 1, raycast(CAM, _scene()).label)

@@ -113,7 +113,7 @@ def test_glb_nodes_corners_and_extras_round_trip_through_json(tmp_path):
     path = write_glb(tmp_path / "r.glb", result.cuboids, camera=CAM)
     scene = trimesh.load(path, process=False)
     names = sorted(scene.graph.nodes_geometry)
-    assert names == ["cuboid_00", "cuboid_01", "cuboid_02"]
+    assert names == ["object_00", "object_01", "object_02"]
     saved = json.loads((tmp_path / "r.json").read_text())["cuboids"]
     for k, name in enumerate(names):
         transform, geom = scene.graph[name]
@@ -136,7 +136,7 @@ def test_glb_nodes_corners_and_extras_round_trip_through_json(tmp_path):
         assert tuple(int(v) for v in colour[:3]) == palette_color(k)
     doc = _glb_json(path)
     nodes = {n["name"]: n for n in doc["nodes"]}
-    extras = nodes["cuboid_01"]["extras"]
+    extras = nodes["object_01"]["extras"]
     assert "opencv" in extras["frame"]
     assert np.allclose(extras["center"], saved[1]["center"]) and np.allclose(
         extras["rotation"], saved[1]["rotation"]
@@ -165,7 +165,7 @@ def test_glb_with_points_puts_the_cloud_on_the_boxes(tmp_path):
     rgb[..., 0] = np.arange(CAM.width, dtype=np.uint8)[None, :]
     out = export_result(result, glb_path=tmp_path / "p.glb", depth_m=depth, rgb=rgb, with_points=True)
     scene = trimesh.load(out["glb"], process=False)
-    assert sorted(scene.graph.nodes_geometry) == ["cuboid_00", "cuboid_01", "cuboid_02", "points"]
+    assert sorted(scene.graph.nodes_geometry) == ["object_00", "object_01", "object_02", "points"]
     transform, geom = scene.graph["points"]
     cloud = scene.geometry[geom]
     assert len(cloud.vertices) == CAM.width * CAM.height
@@ -247,7 +247,7 @@ def test_ply_needs_depth(tmp_path):
 def test_obj_objects_and_corners(tmp_path):
     result = _result()
     obj, mtl = write_obj(tmp_path / "s.obj", result.cuboids)
-    assert mtl.name == "s.mtl" and "newmtl cuboid_02" in mtl.read_text()
+    assert mtl.name == "s.mtl" and "newmtl object_02" in mtl.read_text()
     # object names and their vertex blocks, read from the text
     blocks: dict[str, list] = {}
     for line in obj.read_text().splitlines():
@@ -255,9 +255,9 @@ def test_obj_objects_and_corners(tmp_path):
             current = blocks.setdefault(line[2:], [])
         elif line.startswith("v "):
             current.append([float(x) for x in line.split()[1:]])
-    assert list(blocks) == ["cuboid_00", "cuboid_01", "cuboid_02"]
+    assert list(blocks) == ["object_00", "object_01", "object_02"]
     for k, cub in enumerate(result.cuboids):
-        assert np.allclose(blocks[f"cuboid_{k:02d}"], cub.corners() @ OPENCV_TO_GLTF.T, atol=1e-6)
+        assert np.allclose(blocks[f"object_{k:02d}"], cub.corners() @ OPENCV_TO_GLTF.T, atol=1e-6)
     # and a standard loader sees three closed boxes of the right volumes with outward faces
     scene = trimesh.load(obj, split_object=True, group_material=False)
     meshes = [trimesh.Trimesh(g.vertices, g.faces) for g in scene.geometry.values()]  # drop normals, merge
