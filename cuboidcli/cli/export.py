@@ -6,7 +6,7 @@ from pathlib import Path
 
 import typer
 
-from cuboidcli.cli.common import fail, out, user_errors
+from cuboidcli.cli.common import console, fail, out, user_errors
 
 
 def _input_file(result, key: str) -> Path | None:
@@ -60,6 +60,15 @@ def export(
         help="Write a self-contained page that opens offline: a 3D view of the points and boxes, the overlay "
         "panel and a table of the cuboids (needs the viz extra).",
     ),
+    mjcf: Path | None = typer.Option(
+        None,
+        "--mjcf",
+        help="Write a MuJoCo scene (MJCF): a static box per cuboid, z up, the input camera (needs the sim "
+        "extra).",
+    ),
+    urdf: Path | None = typer.Option(
+        None, "--urdf", help="Write a URDF: a link per cuboid with box visual and collision, fixed to world."
+    ),
     step: int = typer.Option(
         None,
         "--step",
@@ -74,15 +83,16 @@ def export(
     opset: int = typer.Option(17, "--opset", help="ONNX opset for --onnx."),
 ) -> None:
     """Convert a saved result to files other tools open, or export the neural solver to ONNX."""
-    scenes = {kind: path for kind, path in (("html", html),) if path is not None}
+    given = (("html", html), ("mjcf", mjcf), ("urdf", urdf))
+    scenes = {kind: path for kind, path in given if path is not None}
     wants_files = any(p is not None for p in (glb, ply, obj, overlay)) or bool(scenes)
     if onnx is None and not wants_files:
         fail(
-            "nothing to export: pass --glb, --ply, --obj, --overlay or --html (with RESULT.json), or "
-            "--onnx PATH"
+            "nothing to export: pass --glb, --ply, --obj, --overlay, --html, --mjcf or --urdf (with "
+            "RESULT.json), or --onnx PATH"
         )
     if wants_files and result_json is None:
-        fail("--glb/--ply/--obj/--overlay/--html convert a result: pass RESULT.json first")
+        fail("--glb/--ply/--obj/--overlay/--html/--mjcf/--urdf convert a result: pass RESULT.json first")
     for kind in scenes:
         from cuboidcli.export import missing_extra
 
@@ -123,7 +133,7 @@ def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
 def _export_result(
     result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step, scenes
 ) -> None:
-    from cuboidcli.export import export_result
+    from cuboidcli.export import export_result, unlevelled_warning
     from cuboidcli.io.depth import read_depth
     from cuboidcli.io.result import read_result
 
@@ -132,6 +142,9 @@ def _export_result(
             result = read_result(result_json)
         except ValueError as e:
             fail(f"{result_json}: {e}; give a cuboids/1 result written by cuboids fit")
+        warning = unlevelled_warning(result, scenes)
+        if warning:
+            console.print(f"[yellow]warning:[/] {warning}", highlight=False)
         depth = depth if depth is not None else _input_file(result, "depth")
         image = image if image is not None else _input_file(result, "image")
         if (ply is not None or with_points) and depth is None:

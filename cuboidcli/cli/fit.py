@@ -63,6 +63,11 @@ class FitJob:
         result = self.fitter.fit_frame(frame, progress=progress)
         for note in result.info.warnings:
             console.print(f"[yellow]warning:[/] {note}", highlight=False)
+        from cuboidcli.export import unlevelled_warning
+
+        level = unlevelled_warning(result.record, self.scenes)
+        if level:
+            console.print(f"[yellow]warning:[/] {level}", highlight=False)
         return result
 
     def write(self, result, out_json: Path) -> list[Path]:
@@ -192,6 +197,8 @@ def fit(
     html: bool = typer.Option(
         False, "--html", help="Also write <out>.html: a 3D view and table of the cuboids that opens offline."
     ),
+    mjcf: bool = typer.Option(False, "--mjcf", help="Also write <out>_mjcf.xml, a MuJoCo scene (z up)."),
+    urdf: bool = typer.Option(False, "--urdf", help="Also write <out>.urdf (a link per cuboid, z up)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Print only errors."),
     depth_model: str = typer.Option(
         None,
@@ -270,7 +277,7 @@ def fit(
             fitter = fitter_for(config, _str_or_none(weights), _str_or_none(onnx))
         except (ValueError, FileNotFoundError, ImportError) as e:
             fail(str(e))
-        scenes = tuple(kind for kind, wanted in (("html", html),) if wanted)
+        scenes = tuple(kind for kind, wanted in (("html", html), ("mjcf", mjcf), ("urdf", urdf)) if wanted)
         _check_extras(scenes)
         job = FitJob(intrinsics, preset, depth_scale, fitter, glb, ply, overlay, with_points, scenes=scenes)
         if depth is None:

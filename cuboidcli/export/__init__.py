@@ -50,6 +50,7 @@ __all__ = [
     "SCENE_EXTRAS",
     "missing_extra",
     "scene_path",
+    "unlevelled_warning",
     "write_cuboid_ply",
     "write_glb",
     "write_obj",
@@ -67,21 +68,40 @@ __all__ = [
 #: optional extra).
 SCENES: dict[str, tuple[str, str, str]] = {
     "html": (".html", "cuboidcli.export.html", "write_html"),
+    "mjcf": ("_mjcf.xml", "cuboidcli.export.mjcf", "write_mjcf"),
+    "urdf": (".urdf", "cuboidcli.export.mjcf", "write_urdf"),
 }
-#: The library each scene kind needs and the extra that installs it.
-SCENE_EXTRAS: dict[str, tuple[str, str]] = {
+#: The library each scene kind needs and the extra that installs it (None: nothing beyond cuboids).
+SCENE_EXTRAS: dict[str, tuple[str, str] | None] = {
     "html": ("plotly", "viz"),
+    "mjcf": ("mujoco", "sim"),
+    "urdf": None,
 }
+#: Scene kinds whose files are in the z-up world frame (levelled by gravity when the fit had it).
+WORLD_SCENES = ("html", "mjcf", "urdf")
 
 
 def missing_extra(kind: str) -> str | None:
     """A one-line message when the library scene ``kind`` needs is not installed, else None."""
     import importlib.util
 
+    if SCENE_EXTRAS[kind] is None:
+        return None
     module, extra = SCENE_EXTRAS[kind]
     if importlib.util.find_spec(module) is None:
         return f"--{kind} needs the optional extra: pip install 'cuboids[{extra}]' ({module} is missing)"
     return None
+
+
+def unlevelled_warning(result: FitResult, kinds) -> str | None:
+    """One line when scene files of ``kinds`` are asked for a result without gravity: they are then in the
+    camera frame turned z-up, level only if the camera was."""
+    if not any(k in WORLD_SCENES for k in kinds) or result.extras.get("world_from_camera") is not None:
+        return None
+    return (
+        "the result has no gravity: scene files are in the camera frame turned z-up, level only if the "
+        "camera was (fit with --align gravity or give --gravity gx,gy,gz)"
+    )
 
 
 def scene_path(stem: str | Path, kind: str) -> Path:

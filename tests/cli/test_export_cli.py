@@ -220,3 +220,15 @@ def test_html_page_from_a_result_and_a_missing_extra_is_one_line(app, inputs, mo
     res = runner.invoke(app, [*args[:-1], str(d / "w.html")])
     assert res.exit_code == 2 and not (d / "w.html").exists()
     assert "--html needs the optional extra: pip install 'cuboids[viz]'" in " ".join(res.output.split())
+
+
+def test_simulator_scenes_from_a_result_without_gravity_warn_and_load(app, inputs):
+    mujoco = pytest.importorskip("mujoco")
+    d = inputs
+    res = runner.invoke(
+        app, ["export", str(d / "result.json"), "--mjcf", str(d / "s.xml"), "--urdf", str(d / "s.urdf")]
+    )
+    assert res.exit_code == 0, res.output
+    assert "warning: the result has no gravity" in " ".join(res.output.split())
+    for name in ("s.xml", "s.urdf"):
+        assert mujoco.MjModel.from_xml_path(str(d / name)).ngeom == 3
