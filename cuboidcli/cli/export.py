@@ -69,6 +69,12 @@ def export(
     urdf: Path | None = typer.Option(
         None, "--urdf", help="Write a URDF: a link per cuboid with box visual and collision, fixed to world."
     ),
+    usd: Path | None = typer.Option(
+        None,
+        "--usd",
+        help="Write a USD stage (.usda, .usdc or .usd; Isaac Sim, Blender, usdview): a Cube per cuboid, "
+        "z up, metres, the input camera (needs the sim extra).",
+    ),
     step: int = typer.Option(
         None,
         "--step",
@@ -83,16 +89,16 @@ def export(
     opset: int = typer.Option(17, "--opset", help="ONNX opset for --onnx."),
 ) -> None:
     """Convert a saved result to files other tools open, or export the neural solver to ONNX."""
-    given = (("html", html), ("mjcf", mjcf), ("urdf", urdf))
+    given = (("html", html), ("mjcf", mjcf), ("urdf", urdf), ("usd", usd))
     scenes = {kind: path for kind, path in given if path is not None}
     wants_files = any(p is not None for p in (glb, ply, obj, overlay)) or bool(scenes)
     if onnx is None and not wants_files:
         fail(
-            "nothing to export: pass --glb, --ply, --obj, --overlay, --html, --mjcf or --urdf (with "
+            "nothing to export: pass --glb, --ply, --obj, --overlay, --html, --mjcf, --urdf or --usd (with "
             "RESULT.json), or --onnx PATH"
         )
     if wants_files and result_json is None:
-        fail("--glb/--ply/--obj/--overlay/--html/--mjcf/--urdf convert a result: pass RESULT.json first")
+        fail("--glb/--ply/--obj/--overlay and the scene files convert a result: pass RESULT.json first")
     for kind in scenes:
         from cuboidcli.export import missing_extra
 

@@ -199,6 +199,7 @@ def fit(
     ),
     mjcf: bool = typer.Option(False, "--mjcf", help="Also write <out>_mjcf.xml, a MuJoCo scene (z up)."),
     urdf: bool = typer.Option(False, "--urdf", help="Also write <out>.urdf (a link per cuboid, z up)."),
+    usd: bool = typer.Option(False, "--usd", help="Also write <out>.usda, a USD stage (z up, metres)."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Print only errors."),
     depth_model: str = typer.Option(
         None,
@@ -277,7 +278,8 @@ def fit(
             fitter = fitter_for(config, _str_or_none(weights), _str_or_none(onnx))
         except (ValueError, FileNotFoundError, ImportError) as e:
             fail(str(e))
-        scenes = tuple(kind for kind, wanted in (("html", html), ("mjcf", mjcf), ("urdf", urdf)) if wanted)
+        wanted = (("html", html), ("mjcf", mjcf), ("urdf", urdf), ("usd", usd))
+        scenes = tuple(kind for kind, on in wanted if on)
         _check_extras(scenes)
         job = FitJob(intrinsics, preset, depth_scale, fitter, glb, ply, overlay, with_points, scenes=scenes)
         if depth is None:

@@ -70,15 +70,17 @@ SCENES: dict[str, tuple[str, str, str]] = {
     "html": (".html", "cuboidcli.export.html", "write_html"),
     "mjcf": ("_mjcf.xml", "cuboidcli.export.mjcf", "write_mjcf"),
     "urdf": (".urdf", "cuboidcli.export.mjcf", "write_urdf"),
+    "usd": (".usda", "cuboidcli.export.usd", "write_usd"),
 }
 #: The library each scene kind needs and the extra that installs it (None: nothing beyond cuboids).
 SCENE_EXTRAS: dict[str, tuple[str, str] | None] = {
     "html": ("plotly", "viz"),
     "mjcf": ("mujoco", "sim"),
     "urdf": None,
+    "usd": ("pxr", "sim"),
 }
 #: Scene kinds whose files are in the z-up world frame (levelled by gravity when the fit had it).
-WORLD_SCENES = ("html", "mjcf", "urdf")
+WORLD_SCENES = ("html", "mjcf", "urdf", "usd")
 
 
 def missing_extra(kind: str) -> str | None:

@@ -356,10 +356,14 @@ def test_fit_writes_the_html_page_beside_the_json(tmp_path, room_png):
 def test_fit_writes_simulator_scenes_beside_the_json(tmp_path, room_png):
     mujoco = pytest.importorskip("mujoco")
     out = tmp_path / "room.json"
-    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--mjcf", "--urdf", *FAST)
+    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--mjcf", "--urdf", "--usd", *FAST)
     assert r.exit_code == 0, r.output
     names = [c["kind"] + f"_{c['id']:02d}" for c in json.loads(out.read_text())["cuboids"]]
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "room_mjcf.xml"))
     assert [mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(model.ngeom)] == names
     assert mujoco.MjModel.from_xml_path(str(tmp_path / "room.urdf")).ngeom == len(names)
     assert "no gravity" not in r.output  # the room's gravity was estimated: a levelled scene
+    from pxr import Usd, UsdGeom
+
+    stage = Usd.Stage.Open(str(tmp_path / "room.usda"))
+    assert [p.GetParent().GetName() for p in stage.Traverse() if p.IsA(UsdGeom.Cube)] == names
