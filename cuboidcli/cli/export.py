@@ -75,6 +75,11 @@ def export(
         help="Write a USD stage (.usda, .usdc or .usd; Isaac Sim, Blender, usdview): a Cube per cuboid, "
         "z up, metres, the input camera (needs the sim extra).",
     ),
+    rrd: Path | None = typer.Option(
+        None,
+        "--rrd",
+        help="Write a rerun recording: the image, depth, points, boxes and camera (needs the viz extra).",
+    ),
     step: int = typer.Option(
         None,
         "--step",
@@ -89,13 +94,13 @@ def export(
     opset: int = typer.Option(17, "--opset", help="ONNX opset for --onnx."),
 ) -> None:
     """Convert a saved result to files other tools open, or export the neural solver to ONNX."""
-    given = (("html", html), ("mjcf", mjcf), ("urdf", urdf), ("usd", usd))
+    given = (("html", html), ("mjcf", mjcf), ("urdf", urdf), ("usd", usd), ("rrd", rrd))
     scenes = {kind: path for kind, path in given if path is not None}
     wants_files = any(p is not None for p in (glb, ply, obj, overlay)) or bool(scenes)
     if onnx is None and not wants_files:
         fail(
-            "nothing to export: pass --glb, --ply, --obj, --overlay, --html, --mjcf, --urdf or --usd (with "
-            "RESULT.json), or --onnx PATH"
+            "nothing to export: pass --glb, --ply, --obj, --overlay, --html, --mjcf, --urdf, --usd or --rrd "
+            "(with RESULT.json), or --onnx PATH"
         )
     if wants_files and result_json is None:
         fail("--glb/--ply/--obj/--overlay and the scene files convert a result: pass RESULT.json first")

@@ -200,6 +200,15 @@ def fit(
     mjcf: bool = typer.Option(False, "--mjcf", help="Also write <out>_mjcf.xml, a MuJoCo scene (z up)."),
     urdf: bool = typer.Option(False, "--urdf", help="Also write <out>.urdf (a link per cuboid, z up)."),
     usd: bool = typer.Option(False, "--usd", help="Also write <out>.usda, a USD stage (z up, metres)."),
+    rrd: bool = typer.Option(
+        False,
+        "--rrd",
+        help="Also write a rerun recording: <out>.rrd, or for a folder one <folder>/cuboids.rrd with the "
+        "frames on a 'frame' timeline.",
+    ),
+    rerun: bool = typer.Option(
+        False, "--rerun", help="Stream each fitted frame to a running rerun viewer (start `rerun` first)."
+    ),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Print only errors."),
     depth_model: str = typer.Option(
         None,
@@ -278,9 +287,13 @@ def fit(
             fitter = fitter_for(config, _str_or_none(weights), _str_or_none(onnx))
         except (ValueError, FileNotFoundError, ImportError) as e:
             fail(str(e))
-        wanted = (("html", html), ("mjcf", mjcf), ("urdf", urdf), ("usd", usd))
+        wanted = (("html", html), ("mjcf", mjcf), ("urdf", urdf), ("usd", usd), ("rrd", rrd))
         scenes = tuple(kind for kind, on in wanted if on)
-        _check_extras(scenes)
+        _check_extras(scenes + (("rrd",) if rerun else ()))
+        stream = _rerun_stream() if rerun else None
+        if folder_input and "rrd" in scenes:  # one recording of the whole folder, written at the end
+            scenes = tuple(k for k in scenes if k != "rrd")
+            stream = _FolderRecording(stream)
         job = FitJob(intrinsics, preset, depth_scale, fitter, glb, ply, overlay, with_points, scenes=scenes)
         if depth is None:
             from cuboidcli.factories import DepthModelOptions
@@ -298,7 +311,7 @@ def fit(
             )
         if folder_input:
             engine = _Engine(workers, ray_at)
-            _fit_folder(job, depth or image, output, quiet, depth is None, engine, skip_existing)
+            _fit_folder(job, depth or image, output, quiet, depth is None, engine, skip_existing, stream)
             return
         with Progress(
             SpinnerColumn(),
@@ -316,6 +329,8 @@ def fit(
             res = job.run(depth, image, step)
         stem = (depth or image).stem
         written = job.write(res, output or Path(f"{stem}_cuboids.json"))
+        if stream is not None:
+            stream.log(res.record, res.depth_m, res.rgb)
     info = res.info
     if not quiet:
         out.print(cuboid_table(res))
@@ -351,6 +366,7 @@ def _fit_folder(
     rgb: bool,
     engine: _Engine,
     skip_existing: bool,
+    stream=None,
 ) -> None:
     """Fit every depth map (``rgb``: every colour image, depth estimated) of a folder, one JSON each, on
     ``engine``; frames whose outputs exist are skipped; ends with a summary, exit 1 if any frame failed."""
@@ -413,6 +429,8 @@ def _fit_folder(
                     console.print(f"[cyan]note:[/] {source}", highlight=False)
                     said_source = True
                 desc = f"{res.name}: {n} cuboids, {seconds:.2f} s"
+                if stream is not None:
+                    stream.add(tasks[i][2])
             prog.update(task, advance=1, description=desc)
 
         if tasks:
@@ -427,11 +445,47 @@ def _fit_folder(
                 )
             except ValueError as e:  # the engine could not start (Ray missing, a bad address)
                 fail(str(e))
+    if isinstance(stream, _FolderRecording):
+        path = stream.write(out_dir / "cuboids.rrd", [out_dir / f"{f.stem}_cuboids.json" for f in files])
+        if not quiet:
+            out.print(f"wrote {path}")
     if not quiet or summary.failed:
         out.print(f"{summary.line()}: results in {out_dir}/")
     if summary.failed:
         raise typer.Exit(1)
 
+
+def _rerun_stream():
+    """The running rerun viewer frames are streamed to (one line and exit 2 when none answers)."""
+    from cuboidcli.export.rerun import RerunStream
+
+    try:
+        return RerunStream()
+    except (ValueError, ImportError) as e:
+        fail(str(e))
+
+
+class _FolderRecording:
+    """A folder's frames for one rerun recording: each finished frame's JSON is noted (and streamed to a
+    viewer too with --rerun); the recording is written at the end, the frames in file order."""
+
+    def __init__(self, stream=None) -> None:
+        self.stream = stream
+
+    def add(self, json_path: str) -> None:
+        if self.stream is not None:
+            self.stream.add(json_path)
+
+    def write(self, path: Path, json_paths: list[Path]) -> Path:
+        from cuboidcli.export.rerun import saved_inputs, write_rrd_frames
+        from cuboidcli.io.result import read_result
+
+        frames = []
+        for p in json_paths:
+            if p.is_file():
+                result = read_result(p)
+                frames.append((result, *saved_inputs(result)))
+        return write_rrd_frames(frames, path)
 
 def _is_colour_image(path: Path) -> bool:
     """Whether ``path`` is a colour image (3 or 4 channels); a one-channel PNG is taken for a depth map."""

@@ -71,6 +71,7 @@ SCENES: dict[str, tuple[str, str, str]] = {
     "mjcf": ("_mjcf.xml", "cuboidcli.export.mjcf", "write_mjcf"),
     "urdf": (".urdf", "cuboidcli.export.mjcf", "write_urdf"),
     "usd": (".usda", "cuboidcli.export.usd", "write_usd"),
+    "rrd": (".rrd", "cuboidcli.export.rerun", "write_rrd"),
 }
 #: The library each scene kind needs and the extra that installs it (None: nothing beyond cuboids).
 SCENE_EXTRAS: dict[str, tuple[str, str] | None] = {
@@ -78,9 +79,10 @@ SCENE_EXTRAS: dict[str, tuple[str, str] | None] = {
     "mjcf": ("mujoco", "sim"),
     "urdf": None,
     "usd": ("pxr", "sim"),
+    "rrd": ("rerun", "viz"),
 }
 #: Scene kinds whose files are in the z-up world frame (levelled by gravity when the fit had it).
-WORLD_SCENES = ("html", "mjcf", "urdf", "usd")
+WORLD_SCENES = ("html", "mjcf", "urdf", "usd", "rrd")
 
 
 def missing_extra(kind: str) -> str | None:

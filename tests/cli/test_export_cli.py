@@ -232,3 +232,20 @@ def test_simulator_scenes_from_a_result_without_gravity_warn_and_load(app, input
     assert "warning: the result has no gravity" in " ".join(res.output.split())
     for name in ("s.xml", "s.urdf"):
         assert mujoco.MjModel.from_xml_path(str(d / name)).ngeom == 3
+
+
+def test_usd_and_rerun_files_from_a_saved_result(app, inputs):
+    pytest.importorskip("pxr")
+    pytest.importorskip("rerun")
+    from pxr import Usd, UsdGeom
+
+    d = inputs
+    res = runner.invoke(
+        app,
+        ["export", str(d / "result.json"), "--usd", str(d / "s.usdc"), "--rrd", str(d / "s.rrd"),
+         "--depth", str(d / "depth.png"), "--image", str(d / "rgb.png")],
+    )  # fmt: skip
+    assert res.exit_code == 0, res.output
+    stage = Usd.Stage.Open(str(d / "s.usdc"))
+    assert len([p for p in stage.Traverse() if p.IsA(UsdGeom.Cube)]) == 3
+    assert (d / "s.rrd").stat().st_size > 1000

@@ -367,3 +367,32 @@ def test_fit_writes_simulator_scenes_beside_the_json(tmp_path, room_png):
 
     stage = Usd.Stage.Open(str(tmp_path / "room.usda"))
     assert [p.GetParent().GetName() for p in stage.Traverse() if p.IsA(UsdGeom.Cube)] == names
+
+
+def test_rerun_recordings_of_a_frame_and_of_a_folder(tmp_path, room_png):
+    """--rrd: <out>.rrd for one frame; for a folder one cuboids.rrd with every frame on the `frame`
+    timeline, which rerun's own `rrd verify` accepts. --rerun without a viewer: one line, exit 2."""
+    pytest.importorskip("rerun")
+    import shutil
+    import subprocess
+    import sys
+
+    rerun_cli = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    out = tmp_path / "one.json"
+    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--rrd", *FAST)
+    assert r.exit_code == 0, r.output
+    assert subprocess.run([rerun_cli, "rrd", "verify", str(tmp_path / "one.rrd")]).returncode == 0
+    folder = tmp_path / "frames"
+    folder.mkdir()
+    for name in ("a", "b"):
+        shutil.copy(room_png, folder / f"{name}_depth.png")
+    r = run("fit", "--depth", folder, "--preset", "nyu", "-o", tmp_path / "res", "--rrd", *FAST)
+    assert r.exit_code == 0, r.output
+    rec = tmp_path / "res" / "cuboids.rrd"
+    assert subprocess.run([rerun_cli, "rrd", "verify", str(rec)]).returncode == 0
+    printed = subprocess.run([rerun_cli, "rrd", "print", "-vvv", str(rec)], capture_output=True, text=True)
+    box_rows = [line for line in printed.stdout.splitlines() if "Boxes3D" not in line and "_00," in line]
+    assert sorted(int(line.split("┆")[1].strip()) for line in box_rows) == [0, 1]
+    assert not list((tmp_path / "res").glob("*_cuboids.rrd"))  # one recording, not one per frame
+    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", tmp_path / "s.json", "--rerun", *FAST)
+    assert r.exit_code == 2 and "no rerun viewer answers" in r.output and not (tmp_path / "s.json").exists()
