@@ -72,6 +72,26 @@ OBJECT_MIN_PCT = 1
 OBJECT_EXPLAIN_PCT = 50
 
 
+#: Distances (cm) at which the recall curve is sampled (the report plots it; AUC@X is its area up to X).
+RECALL_CURVE_CM = tuple(float(c) for c in range(0, 51))
+
+
+def recall_counts(distances_m: np.ndarray) -> list[int]:
+    """Points with an OA distance at most each distance of :data:`RECALL_CURVE_CM` (inf never is)."""
+    d = np.sort(np.asarray(distances_m, dtype=np.float64).ravel())
+    return [int(np.searchsorted(d, cm / 100.0, side="right")) for cm in RECALL_CURVE_CM]
+
+
+def pooled_recall_pct(frames: list) -> list[float] | None:
+    """The recall curve (%) pooled over frames (their points together) at :data:`RECALL_CURVE_CM`; None
+    when no frame has one."""
+    have = [m for m in frames if m.recall_counts is not None]
+    n = sum(m.n_points for m in have)
+    if not n:
+        return None
+    return [100.0 * sum(m.recall_counts[i] for m in have) / n for i in range(len(RECALL_CURVE_CM))]
+
+
 def auc(distances_m: np.ndarray, threshold_m: float) -> float:
     """AUC@X of a list of distances, in [0, 1]: the reference, direct definition.
 
@@ -221,6 +241,9 @@ class FrameMetrics:
     shape: ShapeMetrics | None = None
     """Axis angles, support and the gravity error (:mod:`.shape`); None when not computed."""
     extras: dict = field(default_factory=dict)
+    recall_counts: list[int] | None = None
+    """Recall curve: the number of points within each distance of :data:`RECALL_CURVE_CM` of the
+    abstraction (of ``n_points``); additive over frames like the AUC statistics."""
 
     def row(self) -> dict:
         """Flat row in reporting units (cm, %), for frames.csv and metrics.json."""
@@ -405,6 +428,7 @@ def frame_metrics(
         auc=auc_stats,
         time_s=time_s,
         gt_matches=None if gt is None else gt_match_counts(cuboids, gt),
+        recall_counts=recall_counts(dist),
     )
     if parsimony_k is not None:
         k_max = max(int(parsimony_k), len(cuboids), 1)

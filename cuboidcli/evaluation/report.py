@@ -176,6 +176,32 @@ def frame_auc_figure(report: EvalReport):
     return fig
 
 
+def recall_figure(report: EvalReport):
+    """The recall curve of each run: the share of all frames' points within a distance of the abstraction
+    (pooled as the AUC is; AUC@X is the area under it up to X, divided by X). None without curves."""
+    from cuboidcli.evaluation.metrics import RECALL_CURVE_CM, pooled_recall_pct
+
+    go = import_plotly()
+    fig = go.Figure()
+    for r, frames in enumerate(report.frames):
+        curve = pooled_recall_pct(frames)
+        if curve is not None:
+            fig.add_trace(go.Scatter(x=list(RECALL_CURVE_CM), y=curve, mode="lines", name=f"run {r}"))
+    if not fig.data:
+        return None
+    for cm, _ in _auc_keys(report):
+        fig.add_vline(x=cm, line_dash="dot", line_color="grey")
+    fig.update_layout(
+        title="Recall: points within a distance of the cuboids (occlusion-aware)",
+        xaxis_title="OA distance (cm)",
+        yaxis_title="points (%)",
+        yaxis_range=[0, 102],
+        height=420,
+        margin={"l": 50, "r": 20, "t": 50, "b": 45},
+    )
+    return fig
+
+
 def frames_table(report: EvalReport) -> str:
     """The per-frame rows of frames.csv, sortable by clicking a column header."""
     rows = [  # the rows of frames.csv (evaluation/outputs.py: frame_rows)
@@ -265,7 +291,8 @@ def worst_section(report: EvalReport, frames) -> str:
 def report_html(report: EvalReport, meta: dict | None = None, frames=None) -> str:
     """The page as a string (see :func:`write_report`)."""
     meta = meta or {}
-    figs = [f for f in (parsimony_figure(report), frame_auc_figure(report)) if f is not None]
+    figs = [parsimony_figure(report), recall_figure(report), frame_auc_figure(report)]
+    figs = [f for f in figs if f is not None]
     plots = "\n".join(plot_div(f, first=i == 0) for i, f in enumerate(figs))
     title = f"cuboids evaluate: {meta.get('method') or 'report'}"
     body = (

@@ -348,3 +348,27 @@ def test_greedy_matching_is_one_to_one_and_takes_best_first():
     ious = np.array([[0.9, 0.6, 0.0], [0.8, 0.3, 0.0], [0.0, 0.0, 0.2]])
     assert sorted(greedy_matches(ious, 0.25)) == [(0, 0), (1, 1)]
     assert greedy_matches(ious, 0.5) == [(0, 0)]
+
+
+def test_the_recall_curve_counts_points_within_each_distance_and_pools_over_frames():
+    from cuboidcli.evaluation.metrics import RECALL_CURVE_CM, auc, pooled_recall_pct, recall_counts
+
+    d = np.array([0.0, 0.004, 0.01, 0.019, 0.2, np.inf])
+    counts = recall_counts(d)
+    assert counts[RECALL_CURVE_CM.index(0.0)] == 1 and counts[RECALL_CURVE_CM.index(1.0)] == 3
+    assert counts[RECALL_CURVE_CM.index(2.0)] == 4 and counts[-1] == 5  # 50 cm; inf is never within
+    assert counts == sorted(counts)
+    # the curve's area up to X over X is the AUC at X, within the 1 cm sampling of the curve
+    rng = np.random.default_rng(0)
+    many = rng.exponential(0.05, 5000)
+    curve = np.array(recall_counts(many)) / many.size
+    area = np.trapezoid(curve[:21], np.array(RECALL_CURVE_CM[:21]) / 100) / 0.2
+    assert area == pytest.approx(auc(many, 0.2), abs=0.01)
+
+    class Frame:  # what pooling reads of a FrameMetrics
+        def __init__(self, dist):
+            self.recall_counts, self.n_points = recall_counts(dist), len(dist)
+
+    pooled = pooled_recall_pct([Frame(d), Frame(np.full(4, 0.001))])
+    assert pooled[RECALL_CURVE_CM.index(1.0)] == pytest.approx(100.0 * (3 + 4) / 10)
+    assert pooled_recall_pct([]) is None

@@ -47,7 +47,8 @@ def test_cli_writes_report_with_metrics_two_plots_and_frames_table(app, folder, 
     assert_self_contained(text)
     assert 'id="metrics"' in text and "auc20cm_pct" in text and "cuboids version" in text
     markup = markup_outside_scripts(text)
-    assert markup.count('class="plotly-graph-div"') == 2  # the parsimony and per-frame AUC plots
+    assert markup.count('class="plotly-graph-div"') == 3  # the parsimony, recall and per-frame AUC plots
+    assert "Recall: points within a distance of the cuboids" in text
     assert 'id="frames"' in text and text.count('onclick="sortTable(this)"') > 5
     assert "no panels" in text  # no saved fits
 
