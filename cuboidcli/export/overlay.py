@@ -148,11 +148,14 @@ def draw_overlay(
     cast: RayCast | None = None,
     alpha: float = 0.45,
     edge_px: int = 2,
+    names: bool = True,
 ) -> np.ndarray:
     """Cuboids over ``background`` (H, W, 3) uint8 RGB: shaded semi-transparent faces and visible edges.
 
     Faces blend the cuboid's palette colour (darker on sides seen at a grazing angle) with weight
-    ``alpha``; edges are ``edge_px`` wide, anti-aliased, hidden where another cuboid is in front.
+    ``alpha``; edges are ``edge_px`` wide, anti-aliased, hidden where another cuboid is in front. With
+    ``names`` each cuboid's scene name (floor_00, wall_01, ...) is written at the middle of what is seen
+    of it.
     """
     import cv2
 
@@ -177,7 +180,31 @@ def draw_overlay(
             cv2.polylines(
                 out, polys, False, tuple(int(c) for c in palette_color(k)), edge_px, cv2.LINE_AA, shift
             )
+    if names:
+        _write_names(out, cuboids, cast.label)
     return out
+
+
+def _write_names(img: np.ndarray, cuboids: list[Cuboid], label: np.ndarray) -> None:
+    """Each cuboid's name at the median pixel of its visible part (none where it is not seen), white on a
+    dark outline, sized to the image."""
+    import cv2
+
+    h, w = label.shape
+    scale = max(0.35, min(h, w) / 900.0)
+    thick = max(1, int(round(scale * 2)))
+    step = max(1, min(h, w) // 240)  # a subsample finds the middle as well, at 12 MP too
+    sub = label[::step, ::step]
+    for k, cub in enumerate(cuboids):
+        rows, cols = np.nonzero(sub == k)
+        if rows.size < 20:
+            continue
+        text = cub.name(k)
+        (tw, th), _ = cv2.getTextSize(text, cv2.FONT_HERSHEY_SIMPLEX, scale, thick)
+        x = int(np.clip(np.median(cols) * step - tw / 2, 0, max(w - tw, 0)))
+        y = int(np.clip(np.median(rows) * step + th / 2, th, h - 1))
+        cv2.putText(img, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale, (0, 0, 0), thick + 2, cv2.LINE_AA)
+        cv2.putText(img, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, scale, (255, 255, 255), thick, cv2.LINE_AA)
 
 
 def background_image(

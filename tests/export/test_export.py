@@ -329,8 +329,8 @@ def test_label_image_png_round_trip(tmp_path):
 def test_overlay_tints_the_cuboid_and_hides_back_edges():
     box = Cuboid([0.0, 0.0, 2.0], [0.5, 0.25, 0.5], np.eye(3))
     bg = np.full((CAM.height, CAM.width, 3), 100, np.uint8)
-    faces = draw_overlay(bg, CAM, [box], edge_px=0)
-    with_edges = draw_overlay(bg, CAM, [box], edge_px=1)
+    faces = draw_overlay(bg, CAM, [box], edge_px=0, names=False)
+    with_edges = draw_overlay(bg, CAM, [box], edge_px=1, names=False)
     cast = raycast(CAM, [box])
     inside = cast.label == 0
     red = np.array(palette_color(0), float)
@@ -348,9 +348,9 @@ def test_overlay_edges_hidden_behind_a_nearer_box():
     near = Cuboid([0.0, 0.0, 1.5], [0.5, 0.5, 0.1], np.eye(3))  # covers the far box's whole silhouette
     bg = np.zeros((CAM.height, CAM.width, 3), np.uint8)
     behind_camera = Cuboid([0.0, 0.0, -4.0], [0.8, 0.6, 0.2], np.eye(3))  # keeps `near` at palette index 1
-    only_near = draw_overlay(bg, CAM, [behind_camera, near], edge_px=1)
-    both = draw_overlay(bg, CAM, [far, near], edge_px=1)
-    assert not np.array_equal(only_near, draw_overlay(bg, CAM, [far], edge_px=1))
+    only_near = draw_overlay(bg, CAM, [behind_camera, near], edge_px=1, names=False)
+    both = draw_overlay(bg, CAM, [far, near], edge_px=1, names=False)
+    assert not np.array_equal(only_near, draw_overlay(bg, CAM, [far], edge_px=1, names=False))
     assert np.array_equal(only_near, both)
 
 
@@ -406,3 +406,23 @@ def test_point_clouds_of_large_frames_are_subsampled_to_a_vga_frames_size():
     assert cloud_step((3024, 4032), 2) == 2  # an explicit step wins
     with pytest.raises(ValueError, match="at least 1"):
         cloud_step((480, 640), 0)
+
+
+def test_overlays_name_each_seen_cuboid_by_its_kind():
+    """The overlay writes floor_00, object_01, ... in white over the middle of each cuboid it shows, and
+    nothing for a cuboid that is out of view."""
+    cam = Camera(300.0, 300.0, 159.5, 119.5, 320, 240)
+    boxes = [
+        Cuboid([0.0, 0.6, 3.0], [1.5, 0.02, 1.5], np.eye(3), kind="floor"),
+        Cuboid([0.0, -0.2, 3.0], [0.4, 0.3, 0.3], np.eye(3)),
+        Cuboid([0.0, 0.0, -3.0], [0.4, 0.3, 0.3], np.eye(3)),  # behind the camera
+    ]
+    bg = np.full((240, 320, 3), 40, np.uint8)
+    named = draw_overlay(bg, cam, boxes)
+    plain = draw_overlay(bg, cam, boxes, names=False)
+    text = (named.min(axis=2) > 180) & (plain.max(axis=2) < 180)  # anti-aliased white letters
+    rows, cols = np.nonzero(text)
+    assert text.sum() > 100
+    cast = raycast(cam, boxes)
+    # white text lies over both seen boxes (floor below, the box above it), none over the hidden one
+    assert (cast.label[rows, cols] == 1).sum() > 20 and (cast.label[rows, cols] == 0).sum() > 20
