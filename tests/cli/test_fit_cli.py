@@ -396,3 +396,46 @@ def test_rerun_recordings_of_a_frame_and_of_a_folder(tmp_path, room_png):
     assert not list((tmp_path / "res").glob("*_cuboids.rrd"))  # one recording, not one per frame
     r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", tmp_path / "s.json", "--rerun", *FAST)
     assert r.exit_code == 2 and "no rerun viewer answers" in r.output and not (tmp_path / "s.json").exists()
+
+
+def test_rerun_streams_a_fit_to_a_running_viewer(tmp_path, room_png):
+    """--rerun sends the frame to a rerun server on this machine (`rerun --port 9876 --save`, headless),
+    which records the boxes under their scene names."""
+    pytest.importorskip("rerun")
+    import shutil
+    import signal
+    import socket
+    import subprocess
+    import sys
+    import time
+
+    rerun_cli = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    with socket.socket() as probe:
+        if probe.connect_ex(("127.0.0.1", 9876)) == 0:
+            pytest.skip("port 9876 is in use")
+    saved = tmp_path / "live.rrd"
+    server = subprocess.Popen(
+        [rerun_cli, "--port", "9876", "--save", str(saved)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    try:
+        for _ in range(100):  # until it listens (at most 10 s)
+            with socket.socket() as probe:
+                if probe.connect_ex(("127.0.0.1", 9876)) == 0:
+                    break
+            time.sleep(0.1)
+        out = tmp_path / "room.json"
+        r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--rerun", *FAST)
+        assert r.exit_code == 0, r.output
+    finally:
+        time.sleep(1.0)
+        server.send_signal(signal.SIGINT)  # it finishes the file and exits
+        try:
+            server.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+    names = [c["kind"] + f"_{c['id']:02d}" for c in json.loads(out.read_text())["cuboids"]]
+    printed = subprocess.run([rerun_cli, "rrd", "print", "-vvv", str(saved)], capture_output=True, text=True)
+    assert all(name in printed.stdout for name in names)
