@@ -102,3 +102,18 @@ def write_room_dataset(root: Path, camera: Camera, rgb: bool = False) -> list[st
     write_cameras(root, {name: camera for name in names})
     (root / "splits.json").write_text(json.dumps({"train": names[:3], "val": names[3:]}))
     return names
+
+
+@pytest.fixture
+def rerun_cli(tmp_path, monkeypatch) -> str:
+    """The `rerun` command of this environment, with its usage analytics switched off in a configuration
+    folder of the test's own: the tests never let it contact anything beyond this machine."""
+    import shutil
+    import subprocess
+    import sys
+
+    pytest.importorskip("rerun")
+    cli = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(tmp_path / "config"))
+    subprocess.run([cli, "analytics", "disable"], capture_output=True, check=True)
+    return cli

@@ -369,15 +369,12 @@ def test_fit_writes_simulator_scenes_beside_the_json(tmp_path, room_png):
     assert [p.GetParent().GetName() for p in stage.Traverse() if p.IsA(UsdGeom.Cube)] == names
 
 
-def test_rerun_recordings_of_a_frame_and_of_a_folder(tmp_path, room_png):
+def test_rerun_recordings_of_a_frame_and_of_a_folder(tmp_path, room_png, rerun_cli):
     """--rrd: <out>.rrd for one frame; for a folder one cuboids.rrd with every frame on the `frame`
     timeline, which rerun's own `rrd verify` accepts. --rerun without a viewer: one line, exit 2."""
-    pytest.importorskip("rerun")
     import shutil
     import subprocess
-    import sys
 
-    rerun_cli = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     out = tmp_path / "one.json"
     r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--rrd", *FAST)
     assert r.exit_code == 0, r.output
@@ -398,18 +395,14 @@ def test_rerun_recordings_of_a_frame_and_of_a_folder(tmp_path, room_png):
     assert r.exit_code == 2 and "no rerun viewer answers" in r.output and not (tmp_path / "s.json").exists()
 
 
-def test_rerun_streams_a_fit_to_a_running_viewer(tmp_path, room_png):
+def test_rerun_streams_a_fit_to_a_running_viewer(tmp_path, room_png, rerun_cli):
     """--rerun sends the frame to a rerun server on this machine (`rerun --port 9876 --save`, headless),
     which records the boxes under their scene names."""
-    pytest.importorskip("rerun")
-    import shutil
     import signal
     import socket
     import subprocess
-    import sys
     import time
 
-    rerun_cli = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
     with socket.socket() as probe:
         if probe.connect_ex(("127.0.0.1", 9876)) == 0:
             pytest.skip("port 9876 is in use")

@@ -4,9 +4,7 @@ are the JSON's boxes in the world frame, one row per frame on the `frame` timeli
 from __future__ import annotations
 
 import ast
-import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,7 +18,6 @@ from cuboidcli.export.scene import world_boxes
 from cuboidcli.io.result import FitResult
 
 pytest.importorskip("rerun")
-RERUN = shutil.which("rerun") or str(Path(sys.executable).with_name("rerun"))
 CAM = Camera(60.0, 60.0, 31.5, 23.5, 64, 48)
 
 
@@ -35,9 +32,10 @@ def _frame(shift: float):
     return FitResult(camera=CAM, cuboids=boxes), depth, rgb
 
 
-def _box_rows(path: Path) -> list[dict]:
+def _box_rows(rerun_cli: str, path: Path) -> list[dict]:
     """The Boxes3D rows of a recording as `rerun rrd print -vvv` prints them."""
-    text = subprocess.run([RERUN, "rrd", "print", "-vvv", str(path)], capture_output=True, text=True).stdout
+    printed = subprocess.run([rerun_cli, "rrd", "print", "-vvv", str(path)], capture_output=True, text=True)
+    text = printed.stdout
     rows = []
     for line in text.splitlines():
         if "object_00" not in line:
@@ -54,12 +52,12 @@ def _box_rows(path: Path) -> list[dict]:
     return rows
 
 
-def test_a_recording_of_two_frames_holds_their_boxes_on_the_frame_timeline(tmp_path):
+def test_a_recording_of_two_frames_holds_their_boxes_on_the_frame_timeline(tmp_path, rerun_cli):
     frames = [_frame(0.0), _frame(-0.4)]
     path = write_rrd_frames(frames, tmp_path / "two.rrd")
-    check = subprocess.run([RERUN, "rrd", "verify", str(path)], capture_output=True, text=True)
+    check = subprocess.run([rerun_cli, "rrd", "verify", str(path)], capture_output=True, text=True)
     assert check.returncode == 0, check.stderr
-    rows = sorted(_box_rows(path), key=lambda r: r["frame"])
+    rows = sorted(_box_rows(rerun_cli, path), key=lambda r: r["frame"])
     assert [r["frame"] for r in rows] == [0, 1]
     for row, (result, _, _) in zip(rows, frames, strict=True):
         want = world_boxes(result)
@@ -69,8 +67,8 @@ def test_a_recording_of_two_frames_holds_their_boxes_on_the_frame_timeline(tmp_p
     assert not list(tmp_path.glob(".*"))  # no temporary file left
 
 
-def test_one_result_without_inputs_is_a_valid_recording(tmp_path):
+def test_one_result_without_inputs_is_a_valid_recording(tmp_path, rerun_cli):
     result, _, _ = _frame(0.0)
     path = write_rrd(result, tmp_path / "one.rrd")
-    assert subprocess.run([RERUN, "rrd", "verify", str(path)], capture_output=True).returncode == 0
-    assert [r["frame"] for r in _box_rows(path)] == [0]
+    assert subprocess.run([rerun_cli, "rrd", "verify", str(path)], capture_output=True).returncode == 0
+    assert [r["frame"] for r in _box_rows(rerun_cli, path)] == [0]
