@@ -29,6 +29,7 @@ gain does not drop.
 
 from __future__ import annotations
 
+import operator
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
@@ -45,6 +46,9 @@ from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_an
 NOMINATED = 16
 #: Margin (in inlier counts) below the nominated threshold, for rounding in the pruned pass.
 PRUNE_MARGIN = 1e-6
+#: Nomination on a grid: every 2nd row and 4th column (an eighth of the points), hypotheses in blocks.
+NOMINATION_GRID = (2, 4)
+NOMINATION_BLOCK = 256
 
 
 
@@ -88,8 +92,9 @@ def gains_cpu(
     state: np.ndarray,
     sp: ScoreParams,
     prune_below: float = -np.inf,
+    cells=None,
 ) -> np.ndarray:
-    """Gains (H,) float64 with the fused numba loop, numpy arrays in; ``prune_below`` as in
+    """Gains (H,) float64 with the fused numba loop, numpy arrays in; ``prune_below`` and ``cells`` as in
     :func:`~cuboidcli.geometry.fused.score_gains`."""
     from cuboidcli.geometry.fused import score_gains
 
@@ -104,6 +109,7 @@ def gains_cpu(
         sp.tau_c,
         sp.occlusion_aware,
         prune_below,
+        cells,
     )
 
 
@@ -173,10 +179,20 @@ class ScoringBackend(ABC):
 
     @abstractmethod
     def gains(
-        self, points: Tensor, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf
+        self,
+        points: Tensor,
+        centers,
+        half_sizes,
+        rotations,
+        state,
+        sp: ScoreParams,
+        prune_below=-np.inf,
+        cells=None,
     ) -> np.ndarray:
         """Inlier-count gain of each hypothesis over ``state``: (H,) float64. A backend that prunes reports
-        -inf for hypotheses whose gain provably stays below ``prune_below``; the others ignore it."""
+        -inf for hypotheses whose gain provably stays below ``prune_below``; the others ignore it.
+        ``cells``: the points' :class:`~cuboidcli.geometry.fused.ImageCells` (all points of a fitting
+        grid, in its order), which lets a backend skip cells a hypothesis cannot reach; None = unknown."""
 
     @abstractmethod
     def refine(
@@ -210,28 +226,70 @@ class ScoringBackend(ABC):
 
         The random subset is drawn from ``generator`` (a CPU generator) on every backend and in both modes,
         also where it is not used, so a seed draws the same random numbers whichever backend scores.
+        Points bound to their cells (:meth:`bind_cells`) are nominated on a regular eighth of their grid
+        instead (:meth:`_nominate`); the random subset is still drawn.
         """
+        cells = self.cells_of(points)
         n = points.shape[0]
         n_sub = prescore_points if prescore_points > 0 else max(n // 8, 1)
         if n_sub >= n:
-            g = self.gains(points, centers, half_sizes, rotations, state, sp)
+            g = self.gains(points, centers, half_sizes, rotations, state, sp, cells=cells)
         else:
             sub = torch.randperm(n, generator=generator)[:n_sub].to(points.device)
             if prescore_points > 0 or self.prunes:
-                g_sub = self.gains(points[sub], centers, half_sizes, rotations, state[sub], sp)
                 k = rescore_top if prescore_points > 0 else NOMINATED
-                top = torch.from_numpy(np.argsort(-g_sub, kind="stable")[:k]).to(centers.device)
-                g_top = self.gains(points, centers[top], half_sizes[top], rotations[top], state, sp)
+                if prescore_points == 0 and cells is not None:
+                    top = self._nominate(points, centers, half_sizes, rotations, state, sp, cells, k)
+                else:
+                    g_sub = self.gains(points[sub], centers, half_sizes, rotations, state[sub], sp)
+                    top = np.argsort(-g_sub, kind="stable")[:k]
+                top = torch.from_numpy(top).to(centers.device)
+                g_top = self.gains(
+                    points, centers[top], half_sizes[top], rotations[top], state, sp, cells=cells
+                )
             if prescore_points > 0:
                 g = np.full(centers.shape[0], -np.inf)
                 g[top.cpu().numpy()] = g_top
             elif self.prunes:
                 threshold = float(g_top.max()) - PRUNE_MARGIN
-                g = self.gains(points, centers, half_sizes, rotations, state, sp, prune_below=threshold)
+                g = self.gains(
+                    points, centers, half_sizes, rotations, state, sp, prune_below=threshold, cells=cells
+                )
             else:
-                g = self.gains(points, centers, half_sizes, rotations, state, sp)
+                g = self.gains(points, centers, half_sizes, rotations, state, sp, cells=cells)
         best = int(np.argmax(g))
         return best, float(g[best]), torch.from_numpy(g)
+
+    def bind_cells(self, points: Tensor, cells) -> None:
+        """Tell the backend the :class:`~cuboidcli.geometry.fused.ImageCells` of ``points`` (all the points of
+        a fit, in the cells' order): scoring exactly these points then visits only the cells each
+        hypothesis can reach. A backend that cannot use them ignores them."""
+        self._bound = (points, cells)
+
+    def cells_of(self, points: Tensor):
+        """The cells bound to ``points`` (this very tensor), or None."""
+        bound = getattr(self, "_bound", None)
+        return bound[1] if bound is not None and bound[0] is points else None
+
+    def _nominate(self, points, centers, half_sizes, rotations, state, sp: ScoreParams, cells, k: int):
+        """The ``k`` hypotheses with the highest gains on a regular eighth of the grid (every
+        ``NOMINATION_GRID``-th row and column), scored ``NOMINATION_BLOCK`` at a time: each block is pruned
+        below the k-th best gain of the blocks before it, since a hypothesis under it cannot be among the
+        k best. Returns their indices (k,) int64, best first, ties in index order."""
+        idx, sub_cells = cells.subgrid(*NOMINATION_GRID)
+        p, s = points[idx], state[idx]
+        h = centers.shape[0]
+        g = np.full(h, -np.inf)
+        kth = -np.inf
+        for lo in range(0, h, NOMINATION_BLOCK):
+            hi = min(lo + NOMINATION_BLOCK, h)
+            part = slice(lo, hi)
+            g[part] = self.gains(
+                p, centers[part], half_sizes[part], rotations[part], s, sp, kth - PRUNE_MARGIN, sub_cells
+            )
+            if hi >= k:
+                kth = float(np.partition(g[:hi], hi - k)[hi - k])
+        return np.argsort(-g, kind="stable")[:k]
 
 
 class NumbaBackend(ScoringBackend):
@@ -253,9 +311,29 @@ class NumbaBackend(ScoringBackend):
         )
         return torch.from_numpy(v)
 
-    def gains(self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf):
-        arrays = (_numpy64(x) for x in (points, centers, half_sizes, rotations, state))
-        return gains_cpu(*arrays, sp, prune_below=prune_below)
+    def gains(
+        self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf, cells=None
+    ):
+        from cuboidcli.geometry.fused import gains_of, inlier_params
+
+        boxes = (_numpy64(x) for x in (centers, half_sizes, rotations))
+        params = inlier_params(sp.tau, sp.beta, sp.tau_c, sp.occlusion_aware)
+        return gains_of(self._arrays(points, state, cells), *boxes, params, prune_below)
+
+    def _arrays(self, points: Tensor, state: Tensor, cells=None):
+        """The :class:`~cuboidcli.geometry.fused.ScoringArrays` of (points, state), kept for the last pair
+        scored: a step scores its batches and then the winner's moves against the same two tensors. The
+        tensors are held, so their identity and version tell a repeat from new ones."""
+        from cuboidcli.geometry.fused import scoring_arrays
+
+        cells = self.cells_of(points) if cells is None else cells
+        objects, versions = (points, state, cells), (points._version, state._version)
+        cached = getattr(self, "_cache", None)
+        if cached is not None and cached[1] == versions and all(map(operator.is_, cached[0], objects)):
+            return cached[2]
+        arrays = scoring_arrays(_numpy64(points), _numpy64(state), cells)
+        self._cache = (objects, versions, arrays)
+        return arrays
 
     def refine(self, points, center, half, rotation, a_min: float, a_max: float):
         out = refine_cuboid_fused(*(x.numpy() for x in (points, center, half, rotation)), a_min, a_max)
@@ -286,7 +364,9 @@ class TorchBackend(ScoringBackend):
     def values(self, points, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:
         return values_torch(*(x.double() for x in (points, centers, half_sizes, rotations)), sp)
 
-    def gains(self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf):
+    def gains(
+        self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf, cells=None
+    ):
         tensors = (x.double() for x in (points, centers, half_sizes, rotations, state))
         return gains_torch(*tensors, sp, chunk=self.chunk).cpu().numpy()
 

@@ -22,6 +22,7 @@ from cuboidcli.fitting.assign import OCCLUDED, assign_points
 from cuboidcli.fitting.backend import NumbaBackend, ScoreParams, ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.winner import Alignment, align_winner, cuboid_kind, refine_winner, values_one
+from cuboidcli.geometry.fused import ImageCells
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.sampling import (
@@ -90,6 +91,7 @@ class PreparedPoints:
     depth_grid: torch.Tensor  # (Hs, Ws) metres, 0 = invalid
     focal_cells: tuple[float, float] | None = None  # (fx, fy) / grid_step: focal lengths in grid cells
     grid_step: int = 8
+    cells: ImageCells | None = None  # the points binned by grid cell (scoring visits the cells it can reach)
 
 
 def prepare_points(
@@ -107,6 +109,8 @@ def prepare_points(
     depth_grid = grid[..., 2]
     flat = grid.reshape(-1, 3)
     ok = np.flatnonzero(flat[:, 2] > 0)
+    u, v = camera.pixel_grid(grid_step)
+    cells = ImageCells.of_grid(ok, (u[0] - camera.cx) / camera.fx, (v[:, 0] - camera.cy) / camera.fy)
     return PreparedPoints(
         points=torch.from_numpy(flat[ok].astype(np.float32)).to(device),
         grid_index=torch.from_numpy(ok),
@@ -114,6 +118,7 @@ def prepare_points(
         depth_grid=torch.from_numpy(depth_grid.astype(np.float32)).to(device),
         focal_cells=(camera.fx / grid_step, camera.fy / grid_step),
         grid_step=grid_step,
+        cells=cells,
     )
 
 
@@ -173,6 +178,8 @@ def fit_points(
     )
     sp = ScoreParams(config.tau_sq_m2, config.beta, config.tau_c, config.occlusion_aware)
     backend = backend_for(config.backend, pts.device)
+    if prep.cells is not None:
+        backend.bind_cells(pts, prep.cells)
     gen = torch.Generator().manual_seed(config.seed)
     state = torch.zeros(n, dtype=torch.float64, device=pts.device)
     cuboids: list[Cuboid] = []

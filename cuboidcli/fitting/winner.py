@@ -157,7 +157,7 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig, b
     gain) with (1, 3) tensors; the inputs when nothing grew."""
     c = c.clone()
     a = a.clone()
-    values = None
+    grown = False
     axes = R[0].double()
     slab_axis = thin_axis(a[0].cpu().numpy())
     faces = [(k, sgn) for k in range(3) if k != slab_axis or config.grow_thickness for sgn in (1.0, -1.0)]
@@ -179,9 +179,9 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig, b
                 grow = new_half - float(a[0, k])
                 if grow <= 1e-6:
                     break
-                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, grow, state, sp, backend)
+                c2, a2, g2 = _move_face(pts, c, a, R, axes, k, sgn, grow, state, sp, backend)
                 if g2 > gain + 1e-6:
-                    c, a, values, gain, grew = c2, a2, v2, g2, True
+                    c, a, gain, grew, grown = c2, a2, g2, True, True
                     break
             if grew:
                 moved = True
@@ -189,18 +189,17 @@ def grow_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig, b
                 done.add((k, sgn))
         if not moved:
             break
-    if values is None:
-        return c, a, values_one(pts, c, a, R, sp, backend), gain
-    # big steps may overshoot into space without points: pull each face back while no gain is lost
-    floor = gain - 1e-3 * abs(gain)
-    for k, sgn in faces:
-        for step in (0.8, 0.4, 0.2, config.grow_step_m):
-            while float(a[0, k]) - 0.5 * step >= config.a_min:
-                c2, a2, v2, g2 = _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp, backend)
-                if g2 < floor:
-                    break
-                c, a, values, gain = c2, a2, v2, g2
-    return c, a, values, gain
+    if grown:
+        # big steps may overshoot into space without points: pull each face back while no gain is lost
+        floor = gain - 1e-3 * abs(gain)
+        for k, sgn in faces:
+            for step in (0.8, 0.4, 0.2, config.grow_step_m):
+                while float(a[0, k]) - 0.5 * step >= config.a_min:
+                    c2, a2, g2 = _move_face(pts, c, a, R, axes, k, sgn, -0.5 * step, state, sp, backend)
+                    if g2 < floor:
+                        break
+                    c, a, gain = c2, a2, g2
+    return c, a, values_one(pts, c, a, R, sp, backend), gain
 
 
 def shrink_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig, backend=None):
@@ -210,7 +209,6 @@ def shrink_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig,
     axes = R[0].double()
     slab_axis = thin_axis(a[0].cpu().numpy())
     faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
-    values = values_one(pts, c, a, R, sp, backend)
     for _ in range(config.grow_rounds):
         moved = False
         for k, sgn in faces:  # the best of the steps, so that a big one does not cut into the surface
@@ -219,24 +217,25 @@ def shrink_cuboid(pts, c, a, R, state, gain, sp: ScoreParams, config: FitConfig,
                 for step in (0.8, 0.4, 0.2, config.grow_step_m)
                 if float(a[0, k]) - 0.5 * step >= config.a_min
             ]
-            best = max(moves, key=lambda m: m[3], default=None)
-            if best is not None and best[3] > gain + 1e-6:
-                c, a, values, gain = best
+            best = max(moves, key=lambda m: m[2], default=None)
+            if best is not None and best[2] > gain + 1e-6:
+                c, a, gain = best
                 moved = True
         if not moved:
             break
-    return c, a, values, gain
+    return c, a, values_one(pts, c, a, R, sp, backend), gain
 
 
 def _move_face(pts, c, a, R, axes, k: int, side: float, delta: float, state, sp: ScoreParams, backend=None):
     """The box with the half-size along axis k changed by ``delta`` (m) and the centre shifted so that only
     the face on ``side`` (+1 / -1) moves, by 2 * delta; the opposite face stays. Returns (center, half,
-    values, gain) of the moved box."""
+    gain) of the moved box; its gain comes from the backend's scoring loop, which visits only the points
+    the box can reach (its values at every point are computed once, for the box a search ends with)."""
     c2 = c + (side * delta * axes[:, k]).to(c.dtype)[None]
     a2 = a.clone()
     a2[0, k] += delta
-    v2 = values_one(pts, c2, a2, R, sp, backend)
-    return c2, a2, v2, gain_of(v2, state)
+    backend = backend or backend_for("auto", pts.device)
+    return c2, a2, float(backend.gains(pts, c2, a2, R, state, sp)[0])
 
 
 def gain_of(values: torch.Tensor, state: torch.Tensor) -> float:

@@ -15,6 +15,7 @@ The numerical solver's fused loops (:mod:`cuboidcli.solvers.adam_fused`) share :
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, prange
@@ -206,68 +207,224 @@ def _screen(t0, t1, t2, a0, a1, a2, R, cutoff):
     return rad * rad, u_lo - eps, u_hi + eps, v_lo - eps, v_hi + eps
 
 
+@njit(cache=True, inline="always")
+def _box_of(centers, half, rot, h, cutoff):
+    """Hypothesis h as the scoring loops use it: (t0, t1, t2, a0, a1, a2, R, c0, c1, c2, screen) with the
+    camera c in its frame and ``screen`` = (r2, u_lo, u_hi, v_lo, v_hi) of :func:`_screen`."""
+    t0, t1, t2 = centers[h, 0], centers[h, 1], centers[h, 2]
+    a0, a1, a2 = half[h, 0], half[h, 1], half[h, 2]
+    R = rot[h]
+    c0, c1, c2 = camera_local(t0, t1, t2, R)
+    return t0, t1, t2, a0, a1, a2, R, c0, c1, c2, _screen(t0, t1, t2, a0, a1, a2, R, cutoff)
+
+
+@njit(cache=True, inline="always")
+def _accumulate(points, uv, lo, hi, old, box, params, acc):
+    """acc plus the gain contributions of points lo..hi-1 (in order) for one hypothesis (``box`` of
+    :func:`_box_of`): sum of combine(f_OAI(y, {h}), s(y)) - s(y); ``params`` = (beta, 1/tau, tau_c, slope,
+    offset, cutoff, oai)."""
+    t0, t1, t2, a0, a1, a2, R, c0, c1, c2, screen = box
+    r2, u_lo, u_hi, v_lo, v_hi = screen
+    beta, inv_tau, tau_c, slope, offset, cutoff, oai = params
+    for i in range(lo, hi):
+        x = points[i, 0] - t0
+        y = points[i, 1] - t1
+        z = points[i, 2] - t2
+        near = x * x + y * y + z * z < r2
+        if not near:
+            if not oai:
+                continue
+            u = uv[i, 0]
+            v = uv[i, 1]
+            if u < u_lo or u > u_hi or v < v_lo or v > v_hi:
+                continue  # value 0 and combine(0, s) = s: no contribution
+        l0, l1, l2 = to_local(x, y, z, R)
+        v = _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, oai)
+        o = old[i]
+        lo_v = min(v, o)
+        acc += (lo_v if lo_v < 0 else max(v, o)) - o
+    return acc
+
+
 @njit(parallel=True, cache=True)
-def _gains(
-    points,
-    uv,
-    centers,
-    half,
-    rot,
-    old,
-    ub_suffix,
-    threshold,
-    beta,
-    inv_tau,
-    tau_c,
-    slope,
-    offset,
-    cutoff,
-    oai,
-    out,
-):
+def _gains(points, uv, centers, half, rot, old, ub_suffix, threshold, params, out):
     n = points.shape[0]
+    cutoff = params[5]
     for h in prange(centers.shape[0]):
-        t0, t1, t2 = centers[h, 0], centers[h, 1], centers[h, 2]
-        a0, a1, a2 = half[h, 0], half[h, 1], half[h, 2]
-        R = rot[h]
-        r2, u_lo, u_hi, v_lo, v_hi = _screen(t0, t1, t2, a0, a1, a2, R, cutoff)
-        c0, c1, c2 = camera_local(t0, t1, t2, R)
+        box = _box_of(centers, half, rot, h, cutoff)
         acc = 0.0
         pruned = False
-        for i in range(n):
-            if (i & 63) == 0 and acc + ub_suffix[i] < threshold:
+        for lo in range(0, n, 64):
+            if acc + ub_suffix[lo] < threshold:
                 pruned = True  # cannot reach the threshold even if every remaining point became an inlier
                 break
-            x = points[i, 0] - t0
-            y = points[i, 1] - t1
-            z = points[i, 2] - t2
-            near = x * x + y * y + z * z < r2
-            if not near:
-                if not oai:
-                    continue
-                u = uv[i, 0]
-                v = uv[i, 1]
-                if u < u_lo or u > u_hi or v < v_lo or v > v_hi:
-                    continue  # value 0 and combine(0, s) = s: no contribution
-            l0, l1, l2 = to_local(x, y, z, R)
-            v = _pair_value(
-                l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, oai
-            )
-            o = old[i]
-            lo = min(v, o)
-            acc += (lo if lo < 0 else max(v, o)) - o
+            hi = min(lo + 64, n)
+            acc = _accumulate(points, uv, lo, hi, old, box, params, acc)
         out[h] = -np.inf if pruned else acc
+
+
+@njit(cache=True, inline="always")
+def _index_range(coords, lo, hi):
+    """First and last index of the increasing ``coords`` within [lo, hi], widened by one on each side for
+    rounding (the points' own x/z, y/z are tested again inside); (1, 0) when none is."""
+    i0 = np.searchsorted(coords, lo) - 1
+    i1 = np.searchsorted(coords, hi, side="right")
+    return max(i0, 0), min(i1, coords.shape[0] - 1)
+
+
+@njit(cache=True, inline="always")
+def _reach(t0, t1, t2, rad, col_u, row_v):
+    """Rows and columns of the image grid whose lines of sight may meet the cube of half-side ``rad``
+    around (t0, t1, t2): (r_lo, r_hi, c_lo, c_hi), the whole grid when the cube reaches z <= 0."""
+    z_near = t2 - rad
+    if z_near <= 1e-6:
+        return 0, row_v.shape[0] - 1, 0, col_u.shape[0] - 1
+    z_far = t2 + rad
+    u_lo = min((t0 - rad) / z_near, (t0 - rad) / z_far)
+    u_hi = max((t0 + rad) / z_near, (t0 + rad) / z_far)
+    v_lo = min((t1 - rad) / z_near, (t1 - rad) / z_far)
+    v_hi = max((t1 + rad) / z_near, (t1 + rad) / z_far)
+    c_lo, c_hi = _index_range(col_u, u_lo, u_hi)
+    r_lo, r_hi = _index_range(row_v, v_lo, v_hi)
+    return r_lo, r_hi, c_lo, c_hi
+
+
+@njit(cache=True, inline="always")
+def _box_sum(sat, cols, r0, r1, c0, c1):
+    """Sum of the per-cell values over rows r0..r1 and columns c0..c1 from their summed-area table."""
+    if r1 < r0 or c1 < c0:
+        return 0.0
+    w = cols + 1
+    return sat[(r1 + 1) * w + c1 + 1] - sat[r0 * w + c1 + 1] - sat[(r1 + 1) * w + c0] + sat[r0 * w + c0]
+
+
+@njit(parallel=True, cache=True)
+def _gains_cells(
+    points, uv, cell_start, col_u, row_v, ub_sat, centers, half, rot, old, threshold, params, out
+):
+    """:func:`_gains` over the points of an image grid, each hypothesis visiting only the rows and columns
+    its near zone and its silhouette can reach (every other point adds exactly 0), in the points' order."""
+    cols = col_u.shape[0]
+    cutoff = params[5]
+    for h in prange(centers.shape[0]):
+        box = _box_of(centers, half, rot, h, cutoff)
+        # the near zone (r2) holds the box, so the cube around the sphere of radius sqrt(r2) holds both
+        r_lo, r_hi, k_lo, k_hi = _reach(box[0], box[1], box[2], math.sqrt(box[10][0]), col_u, row_v)
+        acc = 0.0
+        pruned = False
+        for r in range(r_lo, r_hi + 1):
+            # slack: the table's rounding must never prune a hypothesis that reaches the threshold
+            if acc + _box_sum(ub_sat, cols, r, r_hi, k_lo, k_hi) + 1e-7 < threshold:
+                pruned = True
+                break
+            lo = cell_start[r * cols + k_lo]
+            hi = cell_start[r * cols + k_hi + 1]
+            acc = _accumulate(points, uv, lo, hi, old, box, params, acc)
+        out[h] = -np.inf if pruned else acc
+
+
+@dataclass(frozen=True)
+class ImageCells:
+    """Points binned by the cells of an image grid (row-major), so that a hypothesis visits only the cells
+    its lines of sight and near zone reach.
+
+    ``start`` (rows * cols + 1,) int64: the points of cell k are ``start[k]:start[k + 1]`` (the points are
+    sorted by cell); ``col_u`` (cols,) and ``row_v`` (rows,): the normalised image coordinates x/z, y/z of
+    the columns and rows, increasing."""
+
+    start: np.ndarray
+    col_u: np.ndarray
+    row_v: np.ndarray
+
+    @classmethod
+    def of_grid(cls, cell_of_point: np.ndarray, col_u: np.ndarray, row_v: np.ndarray) -> ImageCells:
+        """Cells of a fitting grid: ``cell_of_point`` (N,) the flat cell index of each point, increasing."""
+        cells = np.asarray(cell_of_point, dtype=np.int64)
+        if cells.size > 1 and np.any(np.diff(cells) < 0):
+            raise ValueError("points must be sorted by their cell")
+        n_cells = len(row_v) * len(col_u)
+        start = np.searchsorted(cells, np.arange(n_cells + 1)).astype(np.int64)
+        return cls(start, np.ascontiguousarray(col_u, np.float64), np.ascontiguousarray(row_v, np.float64))
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return len(self.row_v), len(self.col_u)
+
+    def subgrid(self, row_step: int, col_step: int) -> tuple[np.ndarray, ImageCells]:
+        """The points on every ``row_step``-th row and ``col_step``-th column: (indices, their cells)."""
+        rows, cols = self.shape
+        cell = np.repeat(np.arange(rows * cols), np.diff(self.start))
+        r, c = np.divmod(cell, cols)
+        keep = np.flatnonzero((r % row_step == 0) & (c % col_step == 0))
+        sub_cols = self.col_u[::col_step]
+        sub_cell = (r[keep] // row_step) * len(sub_cols) + c[keep] // col_step
+        return keep, ImageCells.of_grid(sub_cell, sub_cols, self.row_v[::row_step])
+
+    def summed_area(self, per_point: np.ndarray) -> np.ndarray:
+        """Summed-area table ((rows + 1) * (cols + 1),) of ``per_point`` summed per cell."""
+        rows, cols = len(self.row_v), len(self.col_u)
+        csum = np.concatenate([[0.0], np.cumsum(per_point, dtype=np.float64)])
+        per_cell = (csum[self.start[1:]] - csum[self.start[:-1]]).reshape(rows, cols)
+        sat = np.zeros((rows + 1, cols + 1))
+        sat[1:, 1:] = per_cell.cumsum(0).cumsum(1)
+        return sat.ravel()
 
 
 def _f64(*arrays) -> list[np.ndarray]:
     return [np.ascontiguousarray(a, np.float64) for a in arrays]
 
 
-def _inlier_params(tau: float, beta: float, tau_c: float, occlusion_aware: bool) -> tuple:
+def inlier_params(tau: float, beta: float, tau_c: float, occlusion_aware: bool) -> tuple:
     """(beta, 1/tau, tau_c, slope, offset, cutoff, oai): the scalar arguments every kernel takes."""
     slope, offset = leaky_constants(tau, beta, tau_c)
     cutoff = tau * (1.0 + 40.0 / beta)  # f_I < 1e-17 beyond: treated as 0
     return float(beta), 1.0 / tau, float(tau_c), slope, offset, cutoff, bool(occlusion_aware)
+
+
+@dataclass(frozen=True)
+class ScoringArrays:
+    """What scoring hypotheses against one set of points and one state needs, computed once
+    (:func:`scoring_arrays`) and reused by every batch and every single box scored against them."""
+
+    points: np.ndarray  # (N, 3) float64
+    uv: np.ndarray  # (N, 2) x/z, y/z
+    state: np.ndarray  # (N,) float64
+    bound: np.ndarray  # cells: summed-area table of the per-point gain bound; else its suffix sums (N + 1,)
+    cells: ImageCells | None = None
+
+
+def scoring_arrays(points, state, cells: ImageCells | None = None) -> ScoringArrays:
+    """:class:`ScoringArrays` of points (N, 3) and state (N,) (numpy, any float dtype); ``cells`` as in
+    :func:`score_gains`."""
+    points, state = _f64(points, state)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = np.ascontiguousarray(points[:, :2] / points[:, 2:3])
+    # a point adds at most max(0, 1 - s) (values are <= 1), and nothing when s < 0
+    ub = np.where(state < 0, 0.0, np.maximum(0.0, 1.0 - state))
+    if cells is not None:
+        if cells.start[-1] != points.shape[0]:
+            raise ValueError(f"the cells hold {cells.start[-1]} points, not {points.shape[0]}")
+        return ScoringArrays(points, uv, state, cells.summed_area(ub), cells)
+    return ScoringArrays(points, uv, state, np.concatenate([np.cumsum(ub[::-1])[::-1], [0.0]]))
+
+
+def gains_of(
+    arrays: ScoringArrays, centers, half_sizes, rotations, params: tuple, prune_below: float = -np.inf
+) -> np.ndarray:
+    """:func:`score_gains` on prepared :class:`ScoringArrays`; ``params`` = :func:`inlier_params`."""
+    out = np.empty(centers.shape[0], dtype=np.float64)
+    centers, half_sizes, rotations = _f64(centers, half_sizes, rotations)
+    a = arrays
+    if a.cells is not None:
+        c = a.cells
+        _gains_cells(
+            a.points, a.uv, c.start, c.col_u, c.row_v, a.bound, centers, half_sizes, rotations, a.state,
+            float(prune_below), params, out,
+        )  # fmt: skip
+    else:
+        thr = float(prune_below)
+        _gains(a.points, a.uv, centers, half_sizes, rotations, a.state, a.bound, thr, params, out)
+    return out
 
 
 def score_gains(
@@ -281,6 +438,7 @@ def score_gains(
     tau_c: float,
     occlusion_aware: bool = True,
     prune_below: float = -np.inf,
+    cells: ImageCells | None = None,
 ) -> np.ndarray:
     """Inlier-count gain of each hypothesis over the current state.
 
@@ -291,24 +449,13 @@ def score_gains(
     -inf. A point can add at most max(0, 1 - s(y)) (values are <= 1, and nothing when s(y) < 0), so a
     running sum plus the remaining points' bound below the threshold settles it. Exact for every hypothesis
     that reaches the threshold, so the argmax is unchanged whenever some hypothesis reaches it.
+
+    ``cells``: the points are those of an image grid (:class:`ImageCells`, in its order); each hypothesis
+    then visits only the rows and columns it can reach, and the same points in the same order contribute,
+    so the gains are bit for bit those without it.
     """
-    points, state = _f64(points, state)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        uv = np.ascontiguousarray(points[:, :2] / points[:, 2:3])
-    ub = np.where(state < 0, 0.0, np.maximum(0.0, 1.0 - state))
-    ub_suffix = np.concatenate([np.cumsum(ub[::-1])[::-1], [0.0]])
-    out = np.empty(centers.shape[0], dtype=np.float64)
-    _gains(
-        points,
-        uv,
-        *_f64(centers, half_sizes, rotations),
-        state,
-        ub_suffix,
-        float(prune_below),
-        *_inlier_params(tau, beta, tau_c, occlusion_aware),
-        out,
-    )
-    return out
+    params = inlier_params(tau, beta, tau_c, occlusion_aware)
+    return gains_of(scoring_arrays(points, state, cells), centers, half_sizes, rotations, params, prune_below)
 
 
 @njit(parallel=True, cache=True)
@@ -359,6 +506,6 @@ def cuboid_values(
     """f_OAI(y, {h}) of each cuboid on its own: (H, N) float64 (numpy in, numpy out)."""
     out = np.empty((centers.shape[0], points.shape[0]), dtype=np.float64)
     _values(
-        *_f64(points, centers, half_sizes, rotations), *_inlier_params(tau, beta, tau_c, occlusion_aware), out
+        *_f64(points, centers, half_sizes, rotations), *inlier_params(tau, beta, tau_c, occlusion_aware), out
     )
     return out
