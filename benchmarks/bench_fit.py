@@ -67,12 +67,6 @@ def main() -> None:
     from cuboidcli.fitting.config import FitConfig
     from cuboidcli.fitting.pipeline import ensure_compiled, fit_depth
 
-    t = time.perf_counter()
-    ensure_compiled()
-    print(
-        f"start-up (kernel compile/cache load): {time.perf_counter() - t:.2f} s; torch threads "
-        f"{torch.get_num_threads()}"
-    )
     cfg = FitConfig(
         hypotheses=args.hypotheses,
         sampler=args.sampler,
@@ -99,6 +93,12 @@ def main() -> None:
     print(
         f"solver {cfg.solver}, sampler {cfg.sampler}, weights {args.weights or 'shipped'}: "
         f"built in {time.perf_counter() - t:.2f} s"
+    )
+    t = time.perf_counter()
+    ensure_compiled(solver)
+    print(
+        f"start-up (kernel compile/cache load): {time.perf_counter() - t:.2f} s; torch threads "
+        f"{torch.get_num_threads()}"
     )
     stages = ("prepare", "gravity", "sample", "solve", "score", "refine", "align", "update", "total")
     stages += ("assign",)

@@ -84,11 +84,11 @@ def main() -> None:
             "in this process (set NUMBA_NUM_THREADS to raise it)"
         )
     config = FitConfig()
+    numerical = make_solver(FitConfig(solver="numerical"))
     t = time.perf_counter()
-    ensure_compiled()
+    ensure_compiled(numerical)
     compile_s = time.perf_counter() - t
     sets, n_points = minimal_sets(args.sets, config.min_set, args.seed)
-    numerical = make_solver(FitConfig(solver="numerical"))
     neural = make_solver(FitConfig(solver="neural"), args.weights)
     weights = args.weights if args.weights is not None else "shipped (models/solver_v1.pt)"
     print(

@@ -224,7 +224,7 @@ class Fitter:
         self.solver = make_solver(self.config, self.weights, self.onnx, self.config.device)
         self.sampler = make_sampler(self.config.sampler, self.weights, self.config.device)
         if self.config.device == "cpu":
-            ensure_compiled()
+            ensure_compiled(self.solver)
 
     def fit(
         self,

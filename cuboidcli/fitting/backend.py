@@ -346,7 +346,11 @@ class NumbaBackend(ScoringBackend):
         a = torch.full((1, 3), 0.5, dtype=torch.float64)
         R = torch.eye(3, dtype=torch.float64)[None]
         sp = ScoreParams(0.004, 5.0, 0.008)
+        from cuboidcli.geometry.fused import ImageCells
+
         self.gains(p, c, a, R, torch.zeros(2, dtype=torch.float64), sp)
+        cells = ImageCells.of_grid(np.array([0, 1]), np.array([0.0, 0.05]), np.array([0.0]))
+        self.gains(p, c, a, R, torch.zeros(2, dtype=torch.float64), sp, cells=cells)
         self.values(p, c, a, R, sp)
         self.refine(p[[0] * 6], c[0], a[0], R[0], 1e-3, 2.0)
 

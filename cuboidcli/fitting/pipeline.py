@@ -125,19 +125,17 @@ def prepare_points(
 _COMPILED = False
 
 
-def ensure_compiled() -> None:
+def ensure_compiled(solver: CuboidSolver | None = None) -> None:
     """Compile (or load from cache) the fused CPU kernels once per process, outside any timing: those of the
-    numba backend (scoring, values, refinement), the numerical solver's and the localised sampler's."""
+    numba backend (scoring, values, refinement) and the localised sampler's, and the ``solver``'s own when
+    it has a ``warm_up`` method (the numerical solver does)."""
     global _COMPILED
+    warm_up = getattr(solver, "warm_up", None)
+    if warm_up is not None:
+        warm_up()
     if _COMPILED:
         return
-    from cuboidcli.solvers.adam_fused import adam_solve
-
     NumbaBackend().warm_up()
-    init = np.zeros((1, 9))
-    init[0, 6:] = 0.1
-    adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy())
-    adam_solve(np.zeros((1, 6, 3)), init, 1e-3, 2.0, 0.01, 1, init.copy(), 1)  # upright boxes
     from cuboidcli.sampling.proposals import ball_minimal_sets
 
     ball_minimal_sets(
@@ -370,7 +368,7 @@ def fit_depth(
     config = config or FitConfig()
     device = config.device
     if device == "cpu":
-        ensure_compiled()
+        ensure_compiled(solver)
     t0 = time.perf_counter()
     prep = prepare_points(depth_m, camera, config.step_for(*depth_m.shape), device)
     timing = {"prepare": time.perf_counter() - t0}

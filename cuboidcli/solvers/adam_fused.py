@@ -229,6 +229,13 @@ def adam_solve(pts, init, a_min, a_max, lr, iters, out, rot_dof=3):
             _adam_update(p, m, v, grad, lr, c1, c2, a_min, a_max)
 
 
+@njit(cache=True, parallel=True)
+def rotation_matrices(axis_angles, out):
+    """Rodrigues' formula for each row of ``axis_angles`` (H, 3) into ``out`` (H, 3, 3)."""
+    for h in prange(axis_angles.shape[0]):
+        _rodrigues(axis_angles[h, 0], axis_angles[h, 1], axis_angles[h, 2], out[h])
+
+
 @njit(cache=True)
 def objective_and_grad(pts, p):
     """Test hook: F and dF/dp for one minimal set (C, 3) and parameters p (9,)."""

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import torch
 from torch import Tensor
 
@@ -36,8 +37,12 @@ def pca_init(points: Tensor, bounds: SizeBounds) -> tuple[Tensor, Tensor, Tensor
     # SVD of the small (C x 3) matrices; float64 for stability with nearly-collinear sets.
     _, _, vh = torch.linalg.svd(centred.double(), full_matrices=False)
     v = vh.transpose(-1, -2).to(points.dtype)  # (H, 3, 3), columns = principal axes
-    det = torch.linalg.det(v)
-    v = torch.cat([v[..., :2], v[..., 2:] * det[:, None, None].sign()], -1)  # proper rotation
+    # the signs the CPU path (solvers/init_fused.py) uses: each of the first two axes with its largest
+    # component positive, the third their cross product (a proper rotation)
+    first = v[..., :2]
+    largest = first.abs().argmax(-2, keepdim=True)
+    first = first * torch.gather(first, -2, largest).sign()
+    v = torch.cat([first, torch.linalg.cross(first[..., 0], first[..., 1])[..., None]], -1)
     local = centred @ v
     lo, hi = local.amin(1), local.amax(1)
     offset = 0.5 * (lo + hi)
@@ -99,33 +104,47 @@ class NumericalSolver:
         frame. One rotation parameter (or none) instead of three; a box on the room's axes converges in
         :data:`FIXED_AXES_ITERS` Adam steps."""
         pts = minimal_sets.detach()
+        rot_dof = 0 if fixed else 1
+        iters = min(self.iters, FIXED_AXES_ITERS) if fixed else self.iters
+        if self._uses_numba(pts.device):
+            from cuboidcli.solvers.init_fused import upright_boxes
+
+            sets = pts.double().contiguous().numpy()
+            init = np.empty((sets.shape[0], 9))
+            upright_boxes(sets, self.bounds.a_min, self.bounds.a_max, fixed, init)
+            return self._adam_fused(pts, init, rot_dof, iters)
         with torch.no_grad():
             c0, a0, yaw = upright_init(pts.double(), self.bounds, fixed)
             r0 = torch.zeros_like(c0)
             r0[:, 2] = yaw
-        rot_dof = 0 if fixed else 1
-        iters = min(self.iters, FIXED_AXES_ITERS) if fixed else self.iters
-        if self._uses_numba(pts.device):
-            return self._adam_fused(pts, c0, r0, a0, rot_dof, iters)
         return self._adam_torch(pts, c0.to(pts.dtype), r0.to(pts.dtype), a0.to(pts.dtype), rot_dof, iters)
+
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the CPU kernels this solver runs, once per solver."""
+        if getattr(self, "_warm", False) or not self._uses_numba(torch.device("cpu")):
+            return
+        sets = torch.tensor([[[0.0, 0.0, 2.0], [0.1, 0.0, 2.0], [0.0, 0.1, 2.1]]], dtype=torch.float64)
+        self(sets)
+        self.solve_upright(sets)  # yaw-only boxes; boxes on the room's axes share the kernels
+        self._warm = True
 
     def _uses_numba(self, device: torch.device) -> bool:
         """Whether sets on ``device`` are solved by the fused numba loop (else by torch)."""
         return resolve_backend("numba" if self.backend == "fused" else self.backend, device) == "numba"
 
     def _solve_fused(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        from cuboidcli.solvers.init_fused import pca_boxes
+
         pts = minimal_sets.detach()
-        with torch.no_grad():
-            c0, a0, R0 = pca_init(pts.double(), self.bounds)
-        return self._adam_fused(pts, c0, matrix_to_axis_angle(R0), a0, 3)
+        init = np.empty((pts.shape[0], 9))
+        pca_boxes(pts.double().contiguous().numpy(), self.bounds.a_min, self.bounds.a_max, init)
+        return self._adam_fused(pts, init, 3)
 
-    def _adam_fused(
-        self, pts: Tensor, c0: Tensor, r0: Tensor, a0: Tensor, rot_dof: int, iters: int | None = None
-    ):
-        """The fused CPU loop of :meth:`_adam_torch` (float64 in, the input's dtype out)."""
-        from cuboidcli.solvers.adam_fused import adam_solve
+    def _adam_fused(self, pts: Tensor, init: np.ndarray, rot_dof: int, iters: int | None = None):
+        """The fused CPU loop of :meth:`_adam_torch` from ``init`` (H, 9) = (centre, axis-angle,
+        half-sizes) rows (float64 in, the input's dtype out)."""
+        from cuboidcli.solvers.adam_fused import adam_solve, rotation_matrices
 
-        init = torch.cat([c0, r0, a0], -1).double().contiguous().numpy()
         out = init.copy()
         adam_solve(
             pts.double().contiguous().numpy(),
@@ -137,8 +156,14 @@ class NumericalSolver:
             out,
             rot_dof,
         )
-        best = torch.from_numpy(out).to(pts.dtype)
-        return best[:, :3].contiguous(), best[:, 6:].contiguous(), axis_angle_to_matrix(best[:, 3:6])
+        rot = np.empty((out.shape[0], 3, 3))
+        rotation_matrices(out[:, 3:6].copy(), rot)
+        cast = {"dtype": pts.dtype}
+        return (
+            torch.from_numpy(out[:, :3].copy()).to(**cast),
+            torch.from_numpy(out[:, 6:].copy()).to(**cast),
+            torch.from_numpy(rot).to(**cast),
+        )
 
     def _solve_torch(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         pts = minimal_sets.detach()

@@ -206,12 +206,14 @@ def test_ensure_compiled_compiles_every_kernel_of_the_numba_backend():
     code = (
         "from cuboidcli.fitting.pipeline import ensure_compiled\n"
         "from cuboidcli.geometry import fused\n"
-        "from cuboidcli.solvers import adam_fused\n"
+        "from cuboidcli.solvers import adam_fused, init_fused\n"
+        "from cuboidcli.solvers.numerical import NumericalSolver\n"
         "from cuboidcli.sampling import proposals\n"
-        "kernels = [fused._gains, fused._values, adam_fused.refine_adam, adam_fused.adam_solve,"
-        " proposals._ball_sets]\n"
+        "kernels = [fused._gains, fused._gains_cells, fused._values, adam_fused.refine_adam,"
+        " adam_fused.adam_solve, adam_fused.rotation_matrices, init_fused.pca_boxes,"
+        " init_fused.upright_boxes, proposals._ball_sets]\n"
         "assert not any(k.signatures for k in kernels)\n"
-        "ensure_compiled()\n"
+        "ensure_compiled(NumericalSolver())\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
