@@ -114,6 +114,16 @@ def _box_in_frame(pts, mean, V, a_min, a_max, out):
     out[8] = min(max(0.5 * (hi2 - lo2), a_min), a_max)
 
 
+@njit(cache=True, inline="always")
+def _mean(p):
+    """Mean (3,) of the points p (C, 3)."""
+    mean = np.zeros(3)
+    for i in range(p.shape[0]):
+        for k in range(3):
+            mean[k] += p[i, k]
+    return mean / p.shape[0]
+
+
 @njit(cache=True, parallel=True)
 def pca_boxes(pts, a_min, a_max, out):
     """Initial free boxes of minimal sets ``pts`` (H, C, 3) float64 into ``out`` (H, 9) = (centre,
@@ -121,12 +131,7 @@ def pca_boxes(pts, a_min, a_max, out):
     for h in prange(pts.shape[0]):
         p = pts[h]
         n = p.shape[0]
-        mean = np.zeros(3)
-        for i in range(n):
-            for k in range(3):
-                mean[k] += p[i, k]
-        for k in range(3):
-            mean[k] /= n
+        mean = _mean(p)
         A = np.zeros((3, 3))
         for i in range(n):
             for j in range(3):
@@ -158,12 +163,7 @@ def upright_boxes(pts, a_min, a_max, fixed, out):
     for h in prange(pts.shape[0]):
         p = pts[h]
         n = p.shape[0]
-        mean = np.zeros(3)
-        for i in range(n):
-            for k in range(3):
-                mean[k] += p[i, k]
-        for k in range(3):
-            mean[k] /= n
+        mean = _mean(p)
         yaw = 0.0
         if not fixed:
             sxy = sxx = syy = 0.0
