@@ -5,11 +5,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Protocol
 
-import numpy as np
 import torch
 from torch import Tensor
-
-from cuboidcli.geometry.gravity import upright_rotation
 
 
 @dataclass(frozen=True)
@@ -55,8 +52,22 @@ def solve_upright(
 
 
 def upright_nearest(rotations: Tensor) -> Tensor:
-    """The upright rotations (H, 3, 3) nearest to ``rotations`` in a frame whose z axis is up
-    (:func:`~cuboidcli.geometry.gravity.upright_rotation` for each)."""
-    up = np.array([0.0, 0.0, 1.0])
-    out = [upright_rotation(r, up) for r in rotations.detach().double().cpu().numpy()]
-    return torch.from_numpy(np.stack(out)).to(rotations)
+    """The upright rotations (H, 3, 3) nearest to ``rotations`` in a frame whose z axis is up: for each, the
+    column most parallel to z is turned onto +-z by the smallest rotation, which turns the other two with
+    it (:func:`~cuboidcli.geometry.gravity.upright_rotation`, batched)."""
+    r = rotations.double()
+    k = r[:, 2, :].abs().argmax(-1)  # the column most parallel to up
+    src = torch.gather(r, 2, k[:, None, None].expand(-1, 3, 1))[..., 0]  # (H, 3)
+    dst = torch.zeros_like(src)
+    dst[:, 2] = torch.where(src[:, 2] >= 0, 1.0, -1.0)
+    v = torch.linalg.cross(src, dst)
+    s = v.norm(dim=-1)
+    c = (src * dst).sum(-1)  # |src_z| >= 1/sqrt(3): never a half turn
+    kx = torch.zeros_like(r)
+    n = v / s.clamp_min(1e-300)[:, None]
+    kx[:, 0, 1], kx[:, 0, 2], kx[:, 1, 2] = -n[:, 2], n[:, 1], -n[:, 0]
+    kx[:, 1, 0], kx[:, 2, 0], kx[:, 2, 1] = n[:, 2], -n[:, 1], n[:, 0]
+    eye = torch.eye(3, dtype=r.dtype, device=r.device).expand_as(r)
+    turn = eye + s[:, None, None] * kx + (1.0 - c)[:, None, None] * (kx @ kx)
+    turn = torch.where((s < 1e-12)[:, None, None], eye, turn)
+    return (turn @ r).to(rotations)

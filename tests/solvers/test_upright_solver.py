@@ -99,6 +99,19 @@ def test_upright_nearest_is_a_proper_upright_rotation_close_to_the_input():
     assert np.all(np.abs(np.einsum("hij,hij->h", out, r.numpy())) > 2.8)  # within ~10 degrees
 
 
+def test_upright_nearest_equals_the_rotation_of_each_box():
+    from cuboidcli.geometry.gravity import upright_rotation
+    from cuboidcli.geometry.rotations import axis_angle_to_matrix
+
+    r = axis_angle_to_matrix(
+        torch.randn(300, 3, generator=torch.Generator().manual_seed(0), dtype=torch.float64)
+    )
+    r[0] = torch.eye(3, dtype=torch.float64)  # already upright: unchanged
+    out = upright_nearest(r).numpy()
+    ref = np.stack([upright_rotation(x, np.array([0.0, 0.0, 1.0])) for x in r.numpy()])
+    np.testing.assert_allclose(out, ref, atol=1e-12)
+
+
 @pytest.mark.parametrize("mode,axes", [("gravity", None), ("manhattan", "room")])
 def test_a_share_of_each_batch_is_upright(mode, axes):
     frame = Alignment("gravity", UP).frame()
