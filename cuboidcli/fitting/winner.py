@@ -306,7 +306,7 @@ def align_winner(
 
     def place(on: np.ndarray, rot: np.ndarray):
         cn, an = _refit_box(on, c0, a0, rot, config.a_min)
-        c2, a2, R2 = (torch.from_numpy(x)[None].to(c.dtype) for x in (cn, an, rot))
+        c2, a2, R2 = (torch.from_numpy(x)[None].to(device=c.device, dtype=c.dtype) for x in (cn, an, rot))
         v2 = values_one(pts, c2, a2, R2, sp, backend)
         return c2, a2, R2, v2, gain_of(v2, state)
 
