@@ -46,10 +46,13 @@ from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_an
 NOMINATED = 16
 #: Margin (in inlier counts) below the nominated threshold, for rounding in the pruned pass.
 PRUNE_MARGIN = 1e-6
+#: Point-hypothesis pairs per chunk of the torch kernels on a GPU (a few GB of float64 temporaries).
+GPU_CHUNK_PAIRS = 2**23
+#: The hybrid backend scores this many boxes or fewer on the CPU.
+HYBRID_FEW = 64
 #: Nomination on a grid: every 2nd row and 4th column (an eighth of the points), hypotheses in blocks.
 NOMINATION_GRID = (2, 4)
 NOMINATION_BLOCK = 256
-
 
 
 @dataclass(frozen=True)
@@ -362,8 +365,16 @@ class TorchBackend(ScoringBackend):
     name = "torch"
     prunes = False
 
-    def __init__(self, chunk: int = 64):
+    def __init__(self, chunk: int | None = None):
         self.chunk = chunk
+        """Hypotheses per chunk; None = 64 on the CPU, as many as ``GPU_CHUNK_PAIRS`` allow on a GPU."""
+
+    def _chunk(self, points: Tensor) -> int:
+        if self.chunk is not None:
+            return self.chunk
+        if points.device.type == "cpu":
+            return 64
+        return max(64, GPU_CHUNK_PAIRS // max(points.shape[0], 1))
 
     def values(self, points, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:
         return values_torch(*(x.double() for x in (points, centers, half_sizes, rotations)), sp)
@@ -372,16 +383,64 @@ class TorchBackend(ScoringBackend):
         self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf, cells=None
     ):
         tensors = (x.double() for x in (points, centers, half_sizes, rotations, state))
-        return gains_torch(*tensors, sp, chunk=self.chunk).cpu().numpy()
+        return gains_torch(*tensors, sp, chunk=self._chunk(points)).cpu().numpy()
 
     def refine(self, points, center, half, rotation, a_min: float, a_max: float):
         return refine_cuboid(points, center, half, rotation, a_min, a_max)
 
 
+class HybridBackend(TorchBackend):
+    """For points on a GPU ("auto" there): whole batches of hypotheses are scored by the torch kernels on
+    the GPU, in chunks as large as ``GPU_CHUNK_PAIRS`` allow; a few boxes at a time (a winner's values, its
+    face moves while it grows, the nominated candidates) and refinement run in the numba loops on a CPU
+    copy of the points, where a GPU would mostly wait for its kernel launches. Same values as either."""
+
+    name = "hybrid"
+
+    def __init__(self) -> None:
+        super().__init__()
+        self._cpu = NumbaBackend()
+        self._hosted: list = []  # (tensor on the GPU, its version, its CPU copy), the last two
+
+    def _host(self, x: Tensor) -> Tensor:
+        """A CPU float64 copy of ``x``, kept for the points and the state a step scores again and again."""
+        for t, version, copy in self._hosted:
+            if t is x and version == x._version:
+                return copy
+        copy = x.detach().double().cpu()
+        self._hosted = [(x, x._version, copy)] + self._hosted[:1]
+        return copy
+
+    def bind_cells(self, points: Tensor, cells) -> None:
+        super().bind_cells(points, cells)
+        self._cpu.bind_cells(self._host(points), cells)
+
+    def values(self, points, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:
+        if centers.shape[0] > HYBRID_FEW:
+            return super().values(points, centers, half_sizes, rotations, sp)
+        boxes = (x.detach().double().cpu() for x in (centers, half_sizes, rotations))
+        return self._cpu.values(self._host(points), *boxes, sp).to(points.device)
+
+    def gains(
+        self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf, cells=None
+    ):
+        if centers.shape[0] > HYBRID_FEW:
+            return super().gains(points, centers, half_sizes, rotations, state, sp)
+        boxes = (x.detach().double().cpu() for x in (centers, half_sizes, rotations))
+        return self._cpu.gains(self._host(points), *boxes, self._host(state), sp)
+
+    def refine(self, points, center, half, rotation, a_min: float, a_max: float):
+        out = self._cpu.refine(
+            *(x.detach().double().cpu() for x in (points, center, half, rotation)), a_min, a_max
+        )
+        return tuple(x.to(points.device) for x in out)
+
+
 def backend_for(name: str, device: torch.device | str) -> ScoringBackend:
-    """The backend ``name`` ("auto" = numba on the CPU, torch elsewhere; "numba"; "torch") for points on
+    """The backend ``name`` ("auto" = numba on the CPU, hybrid elsewhere; "numba"; "torch") for points on
     ``device``. Raises ValueError for "numba" on a device other than the CPU, or an unknown name."""
-    return NumbaBackend() if resolve_backend(name, device) == "numba" else TorchBackend()
+    kind = resolve_backend(name, device)
+    return {"numba": NumbaBackend, "hybrid": HybridBackend}.get(kind, TorchBackend)()
 
 
 def _numpy64(x: Tensor) -> np.ndarray:

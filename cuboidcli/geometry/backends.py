@@ -1,5 +1,8 @@
 """Which of the two kernel families runs on a device: the fused numba loops (:mod:`.fused`, the CPU only)
-or the torch kernels (:mod:`.kernels`, any device).
+or the torch kernels (:mod:`.kernels`, any device), or, for "auto" on a GPU, both ("hybrid"): the GPU
+scores whole batches of hypotheses with torch, and the CPU does the small sequential work with numba
+(solving the minimal sets, refining and growing one winner), where a GPU would spend its time launching
+kernels.
 
 One rule for every caller that has both: the scoring backend of a fit (:mod:`cuboidcli.fitting.backend`)
 and the numerical solver (:class:`cuboidcli.solvers.numerical.NumericalSolver`).
@@ -9,18 +12,19 @@ from __future__ import annotations
 
 import torch
 
-#: Backend names: "auto" = numba on the CPU, torch elsewhere; "numba"; "torch".
+#: Backend names: "auto" = numba on the CPU, "hybrid" elsewhere; "numba"; "torch".
 BACKENDS = ("auto", "numba", "torch")
 
 
 def resolve_backend(name: str, device: torch.device | str) -> str:
-    """The kernel family ``name`` (one of :data:`BACKENDS`) means on ``device``: "numba" or "torch".
+    """The kernel family ``name`` (one of :data:`BACKENDS`) means on ``device``: "numba", "torch" or
+    "hybrid" (torch for batches on the device, numba on the CPU for the rest).
 
     Raises ValueError for an unknown name, or for "numba" on a device other than the CPU (the numba
     loops read the points' memory directly and run on the CPU only)."""
     kind = torch.device(device).type
     if name == "auto":
-        return "numba" if kind == "cpu" else "torch"
+        return "numba" if kind == "cpu" else "hybrid"
     if name == "torch":
         return "torch"
     if name == "numba":

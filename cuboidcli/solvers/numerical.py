@@ -81,9 +81,10 @@ class NumericalSolver:
     lr: float = 0.01
     iters: int = 50
     backend: str = "auto"
-    """auto (the fused numba loop on the CPU, torch elsewhere) | numba | torch, the rule of a fit's scoring
-    backend (:func:`~cuboidcli.geometry.backends.resolve_backend`; numba is refused on a GPU); "fused" is
-    another name for numba."""
+    """auto (the fused numba loop; for sets on a GPU on a CPU copy, as the sets are tiny and Adam's
+    sequential steps are launch-bound on a GPU) | numba | torch, the rule of a fit's scoring backend
+    (:func:`~cuboidcli.geometry.backends.resolve_backend`; numba is refused on a GPU); "fused" is another
+    name for numba."""
     name: str = "numerical"
 
     def objective(self, points: Tensor, center: Tensor, axis_angle: Tensor, half: Tensor) -> Tensor:
@@ -98,6 +99,10 @@ class NumericalSolver:
             return self._solve_fused(minimal_sets)
         return self._solve_torch(minimal_sets)
 
+    def _on_cpu(self, minimal_sets: Tensor) -> Tensor:
+        """The sets as a float64 numpy array (copied from a GPU in "hybrid" mode: they are tiny)."""
+        return minimal_sets.detach().double().cpu().contiguous().numpy()
+
     def solve_upright(self, minimal_sets: Tensor, fixed: bool = False) -> tuple[Tensor, Tensor, Tensor]:
         """Yaw-only boxes: ``minimal_sets`` (H, C, 3) in a frame whose z axis is up; every box turns about z
         only (``fixed``: not at all, the frame's axes are the room's). Same returns as ``__call__``, in that
@@ -109,7 +114,7 @@ class NumericalSolver:
         if self._uses_numba(pts.device):
             from cuboidcli.solvers.init_fused import upright_boxes
 
-            sets = pts.double().contiguous().numpy()
+            sets = self._on_cpu(pts)
             init = np.empty((sets.shape[0], 9))
             upright_boxes(sets, self.bounds.a_min, self.bounds.a_max, fixed, init)
             return self._adam_fused(pts, init, rot_dof, iters)
@@ -130,14 +135,15 @@ class NumericalSolver:
 
     def _uses_numba(self, device: torch.device) -> bool:
         """Whether sets on ``device`` are solved by the fused numba loop (else by torch)."""
-        return resolve_backend("numba" if self.backend == "fused" else self.backend, device) == "numba"
+        kind = resolve_backend("numba" if self.backend == "fused" else self.backend, device)
+        return kind in ("numba", "hybrid")
 
     def _solve_fused(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         from cuboidcli.solvers.init_fused import pca_boxes
 
         pts = minimal_sets.detach()
         init = np.empty((pts.shape[0], 9))
-        pca_boxes(pts.double().contiguous().numpy(), self.bounds.a_min, self.bounds.a_max, init)
+        pca_boxes(self._on_cpu(pts), self.bounds.a_min, self.bounds.a_max, init)
         return self._adam_fused(pts, init, 3)
 
     def _adam_fused(self, pts: Tensor, init: np.ndarray, rot_dof: int, iters: int | None = None):
@@ -147,7 +153,7 @@ class NumericalSolver:
 
         out = init.copy()
         adam_solve(
-            pts.double().contiguous().numpy(),
+            self._on_cpu(pts),
             init,
             self.bounds.a_min,
             self.bounds.a_max,
@@ -158,7 +164,7 @@ class NumericalSolver:
         )
         rot = np.empty((out.shape[0], 3, 3))
         rotation_matrices(out[:, 3:6].copy(), rot)
-        cast = {"dtype": pts.dtype}
+        cast = {"dtype": pts.dtype, "device": pts.device}
         return (
             torch.from_numpy(out[:, :3].copy()).to(**cast),
             torch.from_numpy(out[:, 6:].copy()).to(**cast),

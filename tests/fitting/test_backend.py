@@ -14,7 +14,7 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import NONE, OCCLUDED, assign_points
-from cuboidcli.fitting.backend import NumbaBackend, ScoreParams, TorchBackend, backend_for
+from cuboidcli.fitting.backend import HybridBackend, NumbaBackend, ScoreParams, TorchBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_points, grid_assignment, prepare_points
 from cuboidcli.fitting.winner import values_one
@@ -110,13 +110,48 @@ def test_refinement_is_the_same_on_both_backends():
 
 def test_backend_for_follows_the_device():
     assert isinstance(backend_for("auto", "cpu"), NumbaBackend)
-    assert isinstance(backend_for("auto", torch.device("cuda")), TorchBackend)  # a device name, no GPU needed
+    assert isinstance(
+        backend_for("auto", torch.device("cuda")), HybridBackend
+    )  # a device name, no GPU needed
+    assert type(backend_for("torch", torch.device("cuda"))) is TorchBackend
     assert isinstance(backend_for("torch", "cpu"), TorchBackend)
     assert isinstance(backend_for("numba", "cpu"), NumbaBackend)
     with pytest.raises(ValueError, match="CPU only"):
         backend_for("numba", torch.device("cuda", 0))
     with pytest.raises(ValueError, match="unknown backend"):
         backend_for("jax", "cpu")
+
+
+def test_hybrid_backend_computes_what_numba_and_torch_do():
+    """The GPU's "auto" backend: batches by the torch kernels, a few boxes and refinement by numba on a CPU
+    copy (run here on the CPU, where the copies are plain copies)."""
+    pts, c, a, R, state = scene(seed=6)
+    sp = ScoreParams(TAU, BETA, 2 * TAU)
+    hybrid = HybridBackend()
+    np.testing.assert_allclose(
+        hybrid.gains(pts, c, a, R, state, sp), TORCH.gains(pts, c, a, R, state, sp), atol=1e-9
+    )
+    few = slice(0, 5)
+    assert np.array_equal(
+        hybrid.gains(pts, c[few], a[few], R[few], state, sp),
+        NUMBA.gains(pts, c[few], a[few], R[few], state, sp),
+    )
+    assert torch.equal(
+        hybrid.values(pts, c[:1], a[:1], R[:1], sp), NUMBA.values(pts, c[:1], a[:1], R[:1], sp)
+    )
+    state[0] = 0.25  # a state changed in place is copied again
+    assert np.array_equal(
+        hybrid.gains(pts, c[few], a[few], R[few], state, sp),
+        NUMBA.gains(pts, c[few], a[few], R[few], state, sp),
+    )
+    for x, y in zip(
+        hybrid.refine(pts[:50], c[0], a[0], R[0], 1e-3, 2.0),
+        NUMBA.refine(pts[:50], c[0], a[0], R[0], 1e-3, 2.0),
+        strict=True,
+    ):
+        assert torch.equal(x, y)
+    b, gain, _ = hybrid.select_best(pts, c, a, R, state, sp, torch.Generator().manual_seed(0))
+    assert b == int(np.argmax(NUMBA.gains(pts, c, a, R, state, sp)))
 
 
 def test_config_refuses_numba_on_a_gpu_and_unknown_backends():
