@@ -353,8 +353,7 @@ class NumbaBackend(ScoringBackend):
 
         self.gains(p, c, a, R, torch.zeros(2, dtype=torch.float64), sp)
         cells = ImageCells.of_grid(np.array([0, 1]), np.array([0.0, 0.05]), np.array([0.0]))
-        for k in (1, 4):  # a few boxes run on one thread, batches in parallel
-            self.gains(p, *(x.expand(k, *x.shape[1:]) for x in (c, a, R)), torch.zeros(2), sp, cells=cells)
+        self.gains(p, c, a, R, torch.zeros(2, dtype=torch.float64), sp, cells=cells)
         self.values(p, c, a, R, sp)
         self.refine(p[[0] * 6], c[0], a[0], R[0], 1e-3, 2.0)
 

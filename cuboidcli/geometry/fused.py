@@ -323,11 +323,6 @@ def _gains_cells(
         out[h] = -np.inf if pruned else acc
 
 
-#: Boxes scored by one thread (:func:`gains_of`).
-FEW_BOXES = 2
-_gains_cells_serial = njit(cache=True)(_gains_cells.py_func)
-
-
 @dataclass(frozen=True)
 class ImageCells:
     """Points binned by the cells of an image grid (row-major), so that a hypothesis visits only the cells
@@ -422,9 +417,7 @@ def gains_of(
     a = arrays
     if a.cells is not None:
         c = a.cells
-        # a few boxes (a winner's face moves): one thread, no parallel region to start
-        kernel = _gains_cells if centers.shape[0] > FEW_BOXES else _gains_cells_serial
-        kernel(
+        _gains_cells(
             a.points, a.uv, c.start, c.col_u, c.row_v, a.bound, centers, half_sizes, rotations, a.state,
             float(prune_below), params, out,
         )  # fmt: skip
