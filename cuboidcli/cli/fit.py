@@ -487,6 +487,7 @@ class _FolderRecording:
                 frames.append((result, *saved_inputs(result)))
         return write_rrd_frames(frames, path)
 
+
 def _is_colour_image(path: Path) -> bool:
     """Whether ``path`` is a colour image (3 or 4 channels); a one-channel PNG is taken for a depth map."""
     import cv2

@@ -51,4 +51,3 @@ def evaluate_dataset(estimator, root: str | Path, split: str | None = None, raw:
     report = evaluate_frames(estimator, frames)
     report["ground_truth"] = {f.name: f.depth_path.name for f in frames}
     return report
-

@@ -31,6 +31,7 @@ from cuboidcli.sampling import (
     draw_hypotheses,
     local_fraction_of,
 )
+from cuboidcli.sampling.space import SpaceCells
 from cuboidcli.solvers.base import CuboidSolver, solve_upright
 
 INVALID = -3
@@ -92,6 +93,7 @@ class PreparedPoints:
     focal_cells: tuple[float, float] | None = None  # (fx, fy) / grid_step: focal lengths in grid cells
     grid_step: int = 8
     cells: ImageCells | None = None  # the points binned by grid cell (scoring visits the cells it can reach)
+    space: SpaceCells | None = None  # unorganised points (a room): the voxel cells localised sets search
 
 
 def prepare_points(
@@ -158,11 +160,13 @@ def fit_points(
     progress: ProgressFn | None = None,
     timing: dict | None = None,
     alignment: Alignment | None = None,
+    backend: ScoringBackend | None = None,
 ) -> tuple[list[Cuboid], FitInfo]:
     """Sequential robust fitting on prepared points (Sec. 3.2). ``timing`` collects per-stage seconds;
     ``alignment`` constrains the orientation of the selected cuboids (None = free). The scoring and
     refinement backend is chosen here, once, from ``config.backend`` and the points' device
-    (ValueError for "numba" on a GPU)."""
+    (ValueError for "numba" on a GPU), unless a ``backend`` is given (a room's, which knows how its
+    points were seen)."""
     timing = {} if timing is None else timing
     for k in ("sample", "solve", "score", "update"):
         timing.setdefault(k, 0.0)
@@ -175,7 +179,7 @@ def fit_points(
         align="free" if alignment is None else alignment.mode,
     )
     sp = ScoreParams(config.tau_sq_m2, config.beta, config.tau_c, config.occlusion_aware)
-    backend = backend_for(config.backend, pts.device)
+    backend = backend or backend_for(config.backend, pts.device)
     if prep.cells is not None:
         backend.bind_cells(pts, prep.cells)
     gen = torch.Generator().manual_seed(config.seed)
@@ -198,6 +202,7 @@ def fit_points(
             state.float(),
             len(cuboids),
             prep.focal_cells,
+            prep.space,
         )
         if not gain_upper_bound(state) > info.theta:  # no hypothesis can gain Theta: stop without drawing
             info.stop_reason = "gain_below_theta"

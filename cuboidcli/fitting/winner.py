@@ -61,6 +61,9 @@ class Alignment:
     """(3,) unit up vector in camera coordinates."""
     axes: np.ndarray | None = None
     """(3, 3) the room's axes (columns: up, two horizontal), for "manhattan"; None = gravity only."""
+    viewpoint: np.ndarray | None = None
+    """(3,) where the room is seen from when telling its shell from furniture (:func:`is_room_slab`): the
+    camera (None: the origin of a frame's coordinates) or a point inside a scanned room."""
 
     def frame(self) -> np.ndarray:
         """(3, 3) world axes as columns in camera coordinates, the third one up: the room's horizontal axes
@@ -300,7 +303,7 @@ def align_winner(
     c0, a0 = c[0].double().cpu().numpy(), a[0].double().cpu().numpy()
 
     all_pts = pts.double().cpu().numpy()
-    room = is_room_slab(all_pts, c0, a0, r0)
+    room = is_room_slab(all_pts, c0, a0, r0, alignment.viewpoint)
     # the room's shell stands on the room's axes even where bent depth fits a tilted plane a little better
     keep = ROOM_KEEP if room else ALIGN_KEEP
 
@@ -394,25 +397,38 @@ def _plane_sweep(
 
 
 def beyond_share(
-    points: np.ndarray, center: np.ndarray, half: np.ndarray, rotation: np.ndarray, k: int
+    points: np.ndarray,
+    center: np.ndarray,
+    half: np.ndarray,
+    rotation: np.ndarray,
+    k: int,
+    viewpoint: np.ndarray | None = None,
 ) -> float:
     """The share of ``points`` (N, 3) that lie more than :data:`ROOM_MARGIN_M` beyond the far face of a
-    slab with thickness axis ``k`` (the face away from the camera, at the origin), along its normal."""
+    slab with thickness axis ``k`` (the face away from ``viewpoint``, None = the camera at the origin),
+    along its normal."""
     if points.shape[0] == 0:
         return 0.0
     n = rotation[:, k]
-    if n @ center < 0:
+    if n @ (center if viewpoint is None else center - viewpoint) < 0:
         n = -n
     far = float(n @ center) + float(half[k])
     return float(np.mean(points @ n > far + ROOM_MARGIN_M))
 
 
-def is_room_slab(points: np.ndarray, center: np.ndarray, half: np.ndarray, rotation: np.ndarray) -> bool:
+def is_room_slab(
+    points: np.ndarray,
+    center: np.ndarray,
+    half: np.ndarray,
+    rotation: np.ndarray,
+    viewpoint: np.ndarray | None = None,
+) -> bool:
     """Whether a box is a slab of the room's shell (wall, floor, ceiling): a slab (:func:`thin_axis`) with
-    at most :data:`ROOM_SHARE` of the frame's ``points`` (N, 3) beyond it (:func:`beyond_share`). This needs
-    no labels; a slab on furniture standing against a wall (a bookcase's side) can pass it too."""
+    at most :data:`ROOM_SHARE` of the frame's ``points`` (N, 3) beyond it seen from ``viewpoint``
+    (:func:`beyond_share`). This needs no labels; a slab on furniture standing against a wall (a bookcase's
+    side) can pass it too."""
     k = thin_axis(np.asarray(half, dtype=np.float64))
-    return k >= 0 and beyond_share(points, center, half, rotation, k) <= ROOM_SHARE
+    return k >= 0 and beyond_share(points, center, half, rotation, k, viewpoint) <= ROOM_SHARE
 
 
 #: A room slab is a floor or ceiling when its thickness axis is within this angle of gravity, a wall when
@@ -420,16 +436,20 @@ def is_room_slab(points: np.ndarray, center: np.ndarray, half: np.ndarray, rotat
 KIND_ANGLE_DEG = 20.0
 
 
-def cuboid_kind(points: np.ndarray, cuboid: Cuboid, down: np.ndarray) -> str:
+def cuboid_kind(
+    points: np.ndarray, cuboid: Cuboid, down: np.ndarray, viewpoint: np.ndarray | None = None
+) -> str:
     """floor, wall, ceiling or object: a slab of the room's shell (:func:`is_room_slab` against the frame's
-    ``points`` (N, 3)) by the direction of its thickness against ``down`` (3,), unit, camera coordinates:
-    level and below the camera a floor, level and above it a ceiling, upright a wall."""
+    ``points`` (N, 3), seen from ``viewpoint``, None = the camera at the origin) by the direction of its
+    thickness against ``down`` (3,), unit: level and below the viewpoint a floor, level and above it a
+    ceiling, upright a wall."""
     c, a, R = cuboid.center, cuboid.half_size, cuboid.rotation
-    if not is_room_slab(points, c, a, R):
+    if not is_room_slab(points, c, a, R, viewpoint):
         return "object"
     cos = abs(float(R[:, thin_axis(a)] @ down))
     if cos >= math.cos(math.radians(KIND_ANGLE_DEG)):
-        return "floor" if float(c @ down) > 0 else "ceiling"
+        below = float((c if viewpoint is None else c - viewpoint) @ down) > 0
+        return "floor" if below else "ceiling"
     if cos <= math.sin(math.radians(KIND_ANGLE_DEG)):
         return "wall"
     return "object"

@@ -16,6 +16,8 @@ from typing import Protocol
 import torch
 from torch import Tensor
 
+from cuboidcli.sampling.space import SpaceCells
+
 
 @dataclass
 class SamplingContext:
@@ -35,6 +37,9 @@ class SamplingContext:
     focal_cells: tuple[float, float] | None = None
     """Focal lengths in fitting-grid cells (fx / grid_step, fy / grid_step); None = estimated from the
     points when a localised proposal needs them."""
+    space: SpaceCells | None = None
+    """For unorganised points (a room, no image grid): their voxel cells, where localised sets find the
+    ball around their first point (:mod:`cuboidcli.sampling.space`)."""
 
 
 class Sampler(Protocol):
@@ -129,6 +134,7 @@ def draw_hypotheses(
     from the sampler's maps, the others from a 3D ball around it), the rest global (all C points from the
     maps, the paper's sets). Returns (maps (H,), indices (H, C), local (H,) bool), all on the CPU."""
     from cuboidcli.sampling.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
+    from cuboidcli.sampling.space import space_minimal_sets
 
     frac = local_fraction_of(sampler, local_fraction)
     n_local = min(max(round(frac * hypotheses), 0), hypotheses)
@@ -137,20 +143,17 @@ def draw_hypotheses(
     idx = torch.empty(hypotheses, min_set, dtype=torch.long)
     if n_local:
         maps[:n_local], seeds = draw_sets_and_maps(p, q, n_local, 1, generator)
-        idx[:n_local] = ball_minimal_sets(
-            ctx.points,
-            ctx.grid_index,
-            ctx.grid_shape,
-            seeds[:, 0],
-            min_set,
-            generator,
-            radii_m or DEFAULT_RADII_M,
-            neighbour_weights(ctx.state),
-            ctx.focal_cells,
-        )
+        weights = neighbour_weights(ctx.state)
+        radii = radii_m or DEFAULT_RADII_M
+        if ctx.space is not None:
+            idx[:n_local] = space_minimal_sets(ctx.space, seeds[:, 0], min_set, generator, radii, weights)
+        else:
+            idx[:n_local] = ball_minimal_sets(
+                ctx.points, ctx.grid_index, ctx.grid_shape, seeds[:, 0], min_set, generator, radii, weights,
+                ctx.focal_cells,
+            )  # fmt: skip
     if n_local < hypotheses:
         maps[n_local:], idx[n_local:] = draw_sets_and_maps(p, q, hypotheses - n_local, min_set, generator)
     local = torch.zeros(hypotheses, dtype=torch.bool)
     local[:n_local] = True
     return maps, idx, local
-

@@ -1,0 +1,147 @@
+"""The scoring backend of a whole room: the estimator's usual interface (:class:`ScoringBackend`) over the
+kernels of :mod:`cuboidcli.geometry.room`, which know how the room's points were seen (``views``,
+``inside`` or ``plain``; docs/scenes.md).
+
+The estimator (:func:`cuboidcli.fitting.pipeline.fit_points`) takes this backend in place of the frame's,
+so sampling, solving, selection, refinement, growing and alignment are the same code for a frame and for
+a room; only the value of a point for a cuboid differs. The backend is bound to one set of points in
+block order (:class:`~cuboidcli.geometry.room.RoomPoints`): every tensor of points it is handed is that
+set, or the subset of it :meth:`RoomBackend.select_best` nominates on.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import Tensor
+
+from cuboidcli.fitting.backend import NOMINATED, PRUNE_MARGIN, ScoreParams, ScoringBackend
+from cuboidcli.geometry import kernels as K
+from cuboidcli.geometry.room import RoomPoints, room_gains, room_params, room_values
+from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+#: Nomination scores every hypothesis on every NOMINATION_STEP-th point of each block.
+NOMINATION_STEP = 8
+
+
+def refine_surface(
+    points: Tensor, center: Tensor, half: Tensor, rotation: Tensor, a_min: float, a_max: float,
+    iters: int = 25, lr: float = 0.003,
+) -> tuple[Tensor, Tensor, Tensor]:  # fmt: skip
+    """Adam on the mean squared distance of ``points`` (M, 3) to the surface of the cuboid (center (3,),
+    half (3,), rotation (3, 3)), half-sizes kept in [a_min, a_max]; the best iterate. A room's points have
+    no single camera, so the frame's occlusion-aware distance (the nearest face seen from the origin) is
+    replaced by the plain distance to the nearest face, which is what the inliers of a box's surface
+    minimise from any viewpoint."""
+    pts = points.double()
+    x = torch.cat([center.double(), matrix_to_axis_angle(rotation.double()), half.double()])
+    m, v = torch.zeros_like(x), torch.zeros_like(x)
+    best = (float("inf"), center.double(), half.double(), rotation.double())
+    b1, b2, eps = 0.9, 0.999, 1e-8
+    # Adam written out: torch.optim's per-call set-up costs more than the few steps on ~1k points
+    with torch.enable_grad():
+        for it in range(iters + 1):
+            x = x.detach().requires_grad_(True)
+            R = axis_angle_to_matrix(x[3:6])[None]
+            local = K.to_local(pts, x[None, :3], R)
+            loss = K.cuboid_sq_distance(local, x[None, 6:]).mean()
+            if loss.item() < best[0]:
+                best = (loss.item(), x[:3].detach().clone(), x[6:].detach().clone(), R[0].detach().clone())
+            if it == iters:
+                break
+            (g,) = torch.autograd.grad(loss, x)
+            with torch.no_grad():
+                m = b1 * m + (1 - b1) * g
+                v = b2 * v + (1 - b2) * g * g
+                step = lr * (m / (1 - b1 ** (it + 1))) / ((v / (1 - b2 ** (it + 1))).sqrt() + eps)
+                x = x - step
+                x[6:] = x[6:].clamp(a_min, a_max)
+    _, cb, ab, Rb = best
+    return cb.to(center.dtype), ab.to(half.dtype), Rb.to(rotation.dtype)
+
+
+class RoomBackend(ScoringBackend):
+    """Values and gains of cuboids against a room's points (:class:`RoomPoints`, block order), with
+    provable pruning per block; refinement on the plain surface distance (:func:`refine_surface`). CPU."""
+
+    name = "room"
+    prunes = True
+
+    def __init__(self, room: RoomPoints) -> None:
+        self.room = room
+        self._sub_index, self._sub = room.subsample(NOMINATION_STEP)
+
+    def _points_of(self, points: Tensor) -> tuple[RoomPoints, np.ndarray | None]:
+        n = points.shape[0]
+        if n == self.room.points.shape[0]:
+            return self.room, None
+        if n == self._sub.points.shape[0]:
+            return self._sub, self._sub_index
+        raise ValueError(f"a room backend scores its own {self.room.points.shape[0]} points, not {n}")
+
+    @staticmethod
+    def _params(sp: ScoreParams) -> tuple:
+        return room_params(sp.tau, sp.beta, sp.tau_c)
+
+    def values(self, points, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:
+        room, _ = self._points_of(points)
+        boxes = (_np64(x) for x in (centers, half_sizes, rotations))
+        return torch.from_numpy(room_values(room, *boxes, self._params(sp)))
+
+    def gains(
+        self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf, cells=None
+    ) -> np.ndarray:
+        room, _ = self._points_of(points)
+        boxes = (_np64(x) for x in (centers, half_sizes, rotations))
+        return room_gains(room, _np64(state), *boxes, self._params(sp), prune_below)
+
+    def refine(self, points, center, half, rotation, a_min: float, a_max: float):
+        return refine_surface(points, center, half, rotation, a_min, a_max)
+
+    def select_best(
+        self, points, centers, half_sizes, rotations, state, sp: ScoreParams, generator,
+        prescore_points: int = 0, rescore_top: int = 64,
+    ) -> tuple[int, float, Tensor]:  # fmt: skip
+        """Exact selection: every hypothesis is scored on a regular subset of each block's points, the best
+        exact gain of the ``NOMINATED`` best of them becomes the pruning threshold, and the full pass
+        abandons hypotheses that provably stay below it. (The approximate ``prescore_points`` path of a
+        frame has no use here: pruning by blocks already skips what a hypothesis cannot reach.)"""
+        params = self._params(sp)
+        st = _np64(state)
+        c, a, R = (_np64(x) for x in (centers, half_sizes, rotations))
+        g_sub = room_gains(self._sub, st[self._sub_index], c, a, R, params)
+        top = np.argsort(-g_sub, kind="stable")[:NOMINATED]
+        bound = self.room.block_bound(st)
+        g_top = room_gains(self.room, st, c[top], a[top], R[top], params, bound=bound)
+        threshold = float(g_top.max()) - PRUNE_MARGIN
+        g = room_gains(self.room, st, c, a, R, params, prune_below=threshold, bound=bound)
+        best = int(np.argmax(g))
+        return best, float(g[best]), torch.from_numpy(g)
+
+
+_WARM = False
+
+
+def warm_up_room() -> None:
+    """Compile (or load from numba's cache) the room kernels of every visibility and the voxel-cell
+    sampler's, once per process, on tiny inputs."""
+    global _WARM
+    if _WARM:
+        return
+    from cuboidcli.sampling.space import SpaceCells, space_minimal_sets
+
+    p = np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0], [0.2, 0.1, 2.0]])
+    c, a, R = np.array([[0.0, 0.0, 2.5]]), np.full((1, 3), 0.5), np.eye(3)[None]
+    params = room_params(0.004, 5.0, 0.008)
+    for vis in ("views", "inside", "plain"):
+        room = RoomPoints.build(p, np.zeros_like(p), vis)
+        room_gains(room, np.zeros(3), c, a, R, params)
+        room_values(room, c, a, R, params)
+    space_minimal_sets(SpaceCells.of(p), torch.tensor([0]), 6, torch.Generator().manual_seed(0), (0.3,))
+    _WARM = True
+
+
+def _np64(x) -> np.ndarray:
+    if isinstance(x, Tensor):
+        x = x.detach().cpu().double().numpy()
+    return np.ascontiguousarray(x, dtype=np.float64)

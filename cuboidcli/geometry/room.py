@@ -1,0 +1,267 @@
+"""Scoring cuboids against a whole room: points in a world frame, seen from many cameras or from none.
+
+The paper's occlusion-aware inlier count f_OAI (Sec. 3.2.4) needs the camera that saw each point: a cuboid
+whose side lies on the line of sight between the camera and a point claims space the camera saw to be
+empty, so the point counts against it. A room has no single camera. :class:`Visibility` names the three
+ways a fit can know what was seen (docs/scenes.md derives each):
+
+- ``views``: a fused RGB-D sequence. Every point keeps the centre of a camera that observed it, o(y); the
+  segment from y to o(y) was seen empty. The value of a point is f_OAI computed with the camera at o(y)
+  instead of the origin: f_I(d^2) where nothing hides it, the leaky penalty f_I - f_O of the occluding side
+  where the cuboid lies on that segment, and the same penalty by the viewpoint's depth m inside the cuboid
+  where the viewpoint itself is inside it (f_I(m^2) - f_O(m^2) when negative). A bare cloud gets virtual
+  viewpoints: each point's own, a short way out of its surface along its normal turned towards the inside
+  of the room (:mod:`cuboidcli.fitting.scene`).
+- ``inside``: a bare point cloud, no viewpoint. What is certain is that an observed surface point is not
+  inside a solid object. A point strictly inside the cuboid counts f_I(d^2) - f_O(d^2) with d its distance
+  to the nearest face: about 1 within sqrt(tau) of the surface (an inlier), negative deeper inside, linear
+  beyond tau_c like the occlusion penalty. Outside the cuboid the value is f_I(d^2).
+- ``plain``: the plain soft inlier count f_I(d^2), nothing counts against a cuboid (for comparison).
+
+A single depth map keeps :mod:`cuboidcli.geometry.fused` (camera at the origin, image-grid culling).
+
+Points are grouped into blocks (a coarse voxel, and within it one viewpoint cluster for ``views``), sorted
+by block. A hypothesis visits a block only when the block's points lie within the cuboid's near zone
+(its bounding box grown by the inlier cut-off) or, for ``views``, when the hull of the block's points and
+their cameras meets the cuboid's bounding box (a line of sight through the cuboid): every other point adds
+exactly 0. Pruning against a threshold uses the per-block bound of what its points can still add.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from cuboidcli.geometry.fused import _fi, _occluding_value, _pair_value, inlier_params, to_local
+
+VISIBILITY = ("views", "inside", "plain")
+_MODE = {"views": 0, "inside": 1, "plain": 2}
+
+#: Side of the coarse voxels that group points into blocks (m).
+BLOCK_M = 0.5
+#: Viewpoints are clustered on this grid (m) for grouping only; each point keeps its own viewpoint.
+VIEW_CELL_M = 0.5
+
+
+@njit(cache=True, inline="always")
+def _room_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, mode):
+    """The value of one point (local l) for one cuboid (half-sizes a; its viewpoint c for "views")."""
+    if mode == 0:
+        oai = True
+        args = (beta, inv_tau, tau_c, slope, offset, cutoff, oai)
+        v = _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, *args)
+        # A viewpoint inside the cuboid: the whole line of sight from it to the cuboid's surface was seen
+        # empty, yet the solid box claims it (a camera is never inside furniture, and a box around the
+        # room's interior would swallow every wall from within). Penalised like a side the point hides
+        # behind, by the viewpoint's depth inside the box.
+        m = min(a0 - abs(c0), min(a1 - abs(c1), a2 - abs(c2)))
+        if m > 0:
+            inside = _occluding_value(m * m, beta, inv_tau, tau_c, slope, offset, cutoff)
+            if inside < 0:
+                v = min(v, inside)
+        return v
+    q0 = abs(l0) - a0
+    q1 = abs(l1) - a1
+    q2 = abs(l2) - a2
+    if mode == 1 and q0 < 0 and q1 < 0 and q2 < 0:
+        m = min(-q0, min(-q1, -q2))
+        return _occluding_value(m * m, beta, inv_tau, tau_c, slope, offset, cutoff)
+    e0 = q0 * q0 if q0 > 0 else 0.0
+    e1 = q1 * q1 if q1 > 0 else 0.0
+    e2 = q2 * q2 if q2 > 0 else 0.0
+    m = min(-q0, min(-q1, -q2))
+    d2 = e0 + e1 + e2 + (m * m if m > 0 else 0.0)
+    return _fi(d2, beta, inv_tau) if d2 < cutoff else 0.0
+
+
+@njit(cache=True, inline="always")
+def _extent(R, a0, a1, a2):
+    """Half-extents of a cuboid's axis-aligned bounding box."""
+    return (
+        abs(R[0, 0]) * a0 + abs(R[0, 1]) * a1 + abs(R[0, 2]) * a2,
+        abs(R[1, 0]) * a0 + abs(R[1, 1]) * a1 + abs(R[1, 2]) * a2,
+        abs(R[2, 0]) * a0 + abs(R[2, 1]) * a1 + abs(R[2, 2]) * a2,
+    )
+
+
+@njit(cache=True, inline="always")
+def _meets(lo, hi, b, c0, c1, c2, e0, e1, e2):
+    """Does the box [lo[b], hi[b]] meet the box centred at c with half-extents e?"""
+    return (
+        lo[b, 0] <= c0 + e0
+        and hi[b, 0] >= c0 - e0
+        and lo[b, 1] <= c1 + e1
+        and hi[b, 1] >= c1 - e1
+        and lo[b, 2] <= c2 + e2
+        and hi[b, 2] >= c2 - e2
+    )
+
+
+@njit(cache=True, inline="always")
+def _point_value(points, views, i, t0, t1, t2, R, a0, a1, a2, params, mode):
+    beta, inv_tau, tau_c, slope, offset, cutoff = params
+    l0, l1, l2 = to_local(points[i, 0] - t0, points[i, 1] - t1, points[i, 2] - t2, R)
+    c0 = c1 = c2 = 0.0
+    if mode == 0:
+        c0, c1, c2 = to_local(views[i, 0] - t0, views[i, 1] - t1, views[i, 2] - t2, R)
+    return _room_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, mode)
+
+
+@njit(parallel=True, cache=True)
+def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, bound, centers, half, rot, threshold,
+                params, mode, out):  # fmt: skip
+    n_blocks = start.shape[0] - 1
+    margin = math.sqrt(params[5])
+    for h in prange(centers.shape[0]):
+        t0, t1, t2 = centers[h, 0], centers[h, 1], centers[h, 2]
+        a0, a1, a2 = half[h, 0], half[h, 1], half[h, 2]
+        R = rot[h]
+        e0, e1, e2 = _extent(R, a0, a1, a2)
+        visit = np.empty(n_blocks, dtype=np.int64)
+        n_visit = 0
+        remaining = 0.0
+        for b in range(n_blocks):
+            near = _meets(lo, hi, b, t0, t1, t2, e0 + margin, e1 + margin, e2 + margin)
+            if near or (mode == 0 and _meets(hull_lo, hull_hi, b, t0, t1, t2, e0, e1, e2)):
+                visit[n_visit] = b
+                n_visit += 1
+                remaining += bound[b]
+        acc = 0.0
+        pruned = False
+        for j in range(n_visit):
+            # slack for rounding: never prune a hypothesis that reaches the threshold
+            if acc + remaining + 1e-7 < threshold:
+                pruned = True
+                break
+            b = visit[j]
+            remaining -= bound[b]
+            for i in range(start[b], start[b + 1]):
+                v = _point_value(points, views, i, t0, t1, t2, R, a0, a1, a2, params, mode)
+                o = old[i]
+                lo_v = min(v, o)
+                acc += (lo_v if lo_v < 0 else max(v, o)) - o
+        out[h] = -np.inf if pruned else acc
+
+
+@njit(parallel=True, cache=True)
+def _room_values(points, views, centers, half, rot, params, mode, out):
+    for i in prange(points.shape[0]):
+        for h in range(centers.shape[0]):
+            out[h, i] = _point_value(
+                points, views, i, centers[h, 0], centers[h, 1], centers[h, 2], rot[h],
+                half[h, 0], half[h, 1], half[h, 2], params, mode,
+            )  # fmt: skip
+
+
+@dataclass(frozen=True)
+class RoomPoints:
+    """Fitting points of a room sorted by block, with what scoring needs about each block.
+
+    ``points`` (N, 3) and ``views`` (N, 3) (each point's viewpoint; zeros unless ``visibility`` is
+    "views") are in block order; the points of block b are ``start[b]:start[b + 1]``; ``lo``/``hi`` (B, 3)
+    the bounding box of a block's points, ``hull_lo``/``hull_hi`` that of its points and their viewpoints;
+    ``order`` (N,) the index of each point in the input it was built from."""
+
+    points: np.ndarray
+    views: np.ndarray
+    visibility: str
+    start: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+    hull_lo: np.ndarray
+    hull_hi: np.ndarray
+    order: np.ndarray
+
+    @classmethod
+    def build(cls, points: np.ndarray, views: np.ndarray | None, visibility: str) -> RoomPoints:
+        """Group ``points`` (N, 3) into blocks; ``views`` (N, 3) is required for "views"."""
+        if visibility not in _MODE:
+            raise ValueError(f"visibility must be one of {', '.join(VISIBILITY)}, not {visibility!r}")
+        points = np.ascontiguousarray(points, np.float64)
+        if visibility == "views":
+            if views is None or views.shape != points.shape:
+                raise ValueError("'views' visibility needs a viewpoint (3,) per point")
+            views = np.ascontiguousarray(views, np.float64)
+        else:
+            views = np.zeros_like(points)
+        keys = _block_keys(points, BLOCK_M)
+        if visibility == "views":
+            cell = np.floor(views / VIEW_CELL_M).astype(np.int64)
+            _, view_id = np.unique(cell, axis=0, return_inverse=True)
+            keys = keys * (int(view_id.max()) + 1) + view_id.ravel()
+        order = np.argsort(keys, kind="stable")
+        keys = keys[order]
+        points, views = points[order], views[order]
+        start = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1], True]).astype(np.int64)
+        lo = np.minimum.reduceat(points, start[:-1], axis=0)
+        hi = np.maximum.reduceat(points, start[:-1], axis=0)
+        if visibility == "views":
+            hull_lo = np.minimum(lo, np.minimum.reduceat(views, start[:-1], axis=0))
+            hull_hi = np.maximum(hi, np.maximum.reduceat(views, start[:-1], axis=0))
+        else:
+            hull_lo, hull_hi = lo, hi
+        return cls(points, views, visibility, start, lo, hi, hull_lo, hull_hi, order)
+
+    def subsample(self, step: int) -> tuple[np.ndarray, RoomPoints]:
+        """Every ``step``-th point of each block (at least one per block), same blocks: (their indices,
+        them)."""
+        counts = np.diff(self.start)
+        within = np.arange(self.points.shape[0]) - np.repeat(self.start[:-1], counts)
+        keep = np.flatnonzero(within % step == 0)
+        start = np.searchsorted(keep, self.start).astype(np.int64)
+        return keep, RoomPoints(
+            self.points[keep], self.views[keep], self.visibility, start, self.lo, self.hi,
+            self.hull_lo, self.hull_hi, self.order[keep],
+        )  # fmt: skip
+
+    def block_bound(self, state: np.ndarray) -> np.ndarray:
+        """Per block, the most its points can add to a gain over ``state`` (N,) (block order)."""
+        ub = np.where(state < 0, 0.0, np.maximum(0.0, 1.0 - state))
+        csum = np.concatenate([[0.0], np.cumsum(ub)])
+        return csum[self.start[1:]] - csum[self.start[:-1]]
+
+
+def _block_keys(points: np.ndarray, size: float) -> np.ndarray:
+    cell = np.floor((points - points.min(0)) / size).astype(np.int64)
+    dims = cell.max(0) + 1
+    return (cell[:, 0] * dims[1] + cell[:, 1]) * dims[2] + cell[:, 2]
+
+
+def room_params(tau: float, beta: float, tau_c: float) -> tuple:
+    """(beta, 1/tau, tau_c, slope, offset, cutoff) for the room kernels."""
+    return inlier_params(tau, beta, tau_c, True)[:6]
+
+
+def room_gains(
+    room: RoomPoints,
+    state: np.ndarray,
+    centers,
+    half_sizes,
+    rotations,
+    params: tuple,
+    prune_below: float = -np.inf,
+    bound: np.ndarray | None = None,
+) -> np.ndarray:
+    """Inlier-count gains (H,) of the hypotheses over ``state`` (N,, block order) under the room's
+    visibility; -inf for hypotheses that provably stay below ``prune_below``. ``bound``: the
+    :meth:`RoomPoints.block_bound` of ``state`` when already computed."""
+    out = np.empty(len(centers), dtype=np.float64)
+    state = np.ascontiguousarray(state, np.float64)
+    bound = room.block_bound(state) if bound is None else bound
+    c, a, R = (np.ascontiguousarray(x, np.float64) for x in (centers, half_sizes, rotations))
+    _room_gains(
+        room.points, room.views, state, room.start, room.lo, room.hi, room.hull_lo, room.hull_hi, bound,
+        c, a, R, float(prune_below), params, _MODE[room.visibility], out,
+    )  # fmt: skip
+    return out
+
+
+def room_values(room: RoomPoints, centers, half_sizes, rotations, params: tuple) -> np.ndarray:
+    """The value of every point (block order) for each cuboid on its own: (H, N) float64."""
+    out = np.empty((len(centers), room.points.shape[0]), dtype=np.float64)
+    c, a, R = (np.ascontiguousarray(x, np.float64) for x in (centers, half_sizes, rotations))
+    _room_values(room.points, room.views, c, a, R, params, _MODE[room.visibility], out)
+    return out
