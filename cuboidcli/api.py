@@ -310,6 +310,48 @@ class Fitter:
         record = make_result(camera, cuboids, info, config, meta, self.solver.name, self.sampler.name, extra)
         return Result(record, info, depth_m, rgb)
 
+    def fit_scene(
+        self,
+        path: str | os.PathLike,
+        *,
+        scene=None,
+        unit: str = "m",
+        every: int = 1,
+        intrinsics: str | None = None,
+        depth_scale: float | None = None,
+        progress=None,
+        fuse_progress=None,
+    ):
+        """Fit a whole room as ``cuboids fit room.ply`` (or a sequence folder) does: a point cloud or mesh
+        file (.ply, .pcd, .obj, .glb/.gltf, .npy/.npz; ``unit`` m, cm or mm) or a posed RGB-D sequence
+        folder (TUM, ScanNet, Redwood or the plain layout; every ``every``-th frame, fused), fitted in the
+        input's own frame. ``scene``: a :class:`cuboidcli.fitting.scene.SceneConfig` (voxel, fitting
+        points, ``max_cuboids`` (40), visibility, up). Returns a :class:`cuboidcli.scene.SceneResult`.
+        Raises ValueError (:class:`cuboidcli.io.depth.InputError`) for unusable input."""
+        from cuboidcli.fitting.scene import SceneConfig, fit_scene
+        from cuboidcli.scene import SceneResult, load_scene, scene_result
+
+        scene = scene or SceneConfig()
+        data = load_scene(
+            path,
+            unit=unit,
+            every=every,
+            intrinsics=intrinsics,
+            depth_scale=depth_scale,
+            progress=fuse_progress,
+        )
+        cloud = data.cloud
+        cuboids, info = fit_scene(
+            cloud.points, self.config, scene, solver=self.solver, sampler=self.sampler,
+            viewpoints=cloud.viewpoints, up_hint=data.up_hint, progress=progress,
+        )  # fmt: skip
+        info.fit.timing_s = {"load": round(data.load_seconds, 6), **info.timing_s}
+        record = scene_result(
+            data, cuboids, info, self.config, scene, self.solver.name, self.sampler.name, path
+        )
+        record.timing_s = info.fit.timing_s
+        return SceneResult(record, info, data)
+
 
 def fit(
     depth_m: np.ndarray,

@@ -59,7 +59,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("fitting",),
     ("weights",),
     ("export", "synth"),
-    ("factories", "frame", "api", "scaleout", "folder"),
+    ("factories", "frame", "scene", "api", "scaleout", "folder"),
     ("evaluation",),
     ("learn",),
     ("cli",),

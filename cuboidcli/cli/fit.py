@@ -247,6 +247,24 @@ def fit(
         help="Leave out the points on discontinuities of depth estimated from RGB (smeared between objects; "
         "no gain measured with the built-in network).",
     ),
+    unit: str = typer.Option("m", "--unit", help="A point cloud or mesh: its unit (m, cm or mm)."),
+    every: int = typer.Option(1, "--every", help="A sequence folder: fuse every n-th frame."),
+    visibility: str = typer.Option(
+        "auto",
+        "--visibility",
+        help="A room: how points count against a cuboid: views (no cuboid hides a point from its camera, "
+        "nor holds the camera; a bare cloud is seen from just outside its surfaces), inside (no observed "
+        "point inside a solid box), plain (plain inlier count); auto = views.",
+    ),
+    up: str = typer.Option(
+        None,
+        "--up",
+        help="A room: its up direction in the input's frame: z, y, -y, x or x,y,z.",
+        show_default="estimated: the room's axis nearest the cameras' up, y for glTF, z otherwise",
+    ),
+    voxel: float = typer.Option(
+        None, "--voxel", help="A room: side of the voxels whose means are fitted (m).", show_default="0.05"
+    ),
     workers: int = workers_option(),
     ray: bool = ray_option(),
     ray_address: str = ray_address_option(),
@@ -256,8 +274,17 @@ def fit(
 ) -> None:
     """Fit cuboids to a depth map (or every depth map in a folder) and write "cuboids/1" JSON.
 
-    With only an RGB image, depth comes from a monocular depth network (the built-in one by default)."""
+    With only an RGB image, depth comes from a monocular depth network (the built-in one by default).
+    A point cloud or mesh (.ply, .pcd, .obj, .glb/.gltf, .npy/.npz of points) or a posed RGB-D sequence
+    folder (TUM, ScanNet, Redwood, or depth/ + pose/ + cameras.json) is fitted as one room, in its own
+    frame, with up to 40 cuboids."""
     options = dict(locals())  # the parameters named after FitConfig fields are its settings
+    if image is not None and depth is None and image.exists():
+        from cuboidcli.scene import is_scene_input
+
+        if is_scene_input(image):
+            _fit_room(options, ctx_max_cuboids=_given(options, "max_cuboids"))
+            return
     if depth is None and image is None:
         fail("give a depth map with --depth D.png or an RGB image (see cuboids fit --help)")
     if depth_model_kind not in (None, "metric", "relative", "relative-inverse"):
@@ -486,6 +513,39 @@ class _FolderRecording:
                 result = read_result(p)
                 frames.append((result, *saved_inputs(result)))
         return write_rrd_frames(frames, path)
+
+
+def _given(options: dict, name: str):
+    """The value of a FitConfig option when it differs from the frame's default, else None."""
+    value = options.get(name)
+    return None if value == getattr(DEFAULTS, name) else value
+
+
+def _fit_room(o: dict, ctx_max_cuboids: int | None) -> None:
+    from cuboidcli.cli.fit_scene import fit_room, scene_config
+
+    if o["workers"] > 1 or o["ray"] or o["ray_address"]:
+        fail("--workers and --ray fit the frames of a folder of depth maps; a room is fitted in one process")
+    if o["sampler"] == "learned":
+        fail("--sampler learned weighs the pixels of a depth map; a room is fitted with sequential")
+    config = fit_config(o)
+    scene = scene_config(ctx_max_cuboids, o["visibility"], o["up"], o["voxel"])
+    wanted = (("html", o["html"]), ("mjcf", o["mjcf"]), ("urdf", o["urdf"]), ("usd", o["usd"]))
+    scenes = tuple(kind for kind, on in wanted if on)
+    with user_errors():
+        _check_extras(scenes)
+        try:
+            fitter = fitter_for(config, _str_or_none(o["weights"]), _str_or_none(o["onnx"]))
+        except (ValueError, FileNotFoundError, ImportError) as e:
+            fail(str(e))
+        outputs = {
+            "glb": o["glb"], "ply": o["ply"], "overlay": o["overlay"], "with_points": o["with_points"],
+            "scenes": scenes,
+        }  # fmt: skip
+        fit_room(
+            fitter, o["image"], scene, o["output"], unit=o["unit"], every=o["every"],
+            intrinsics=o["intrinsics"], depth_scale=o["depth_scale"], outputs=outputs, quiet=o["quiet"],
+        )  # fmt: skip
 
 
 def _is_colour_image(path: Path) -> bool:

@@ -21,7 +21,8 @@ CAMERA_TO_ZUP = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 def world_from_camera(result: FitResult) -> tuple[np.ndarray, bool]:
     """((4, 4) camera -> world, z up, metres; whether it is levelled by gravity). ValueError for a
     ``world_from_camera`` entry that is not a rotation."""
-    known = result.extras.get("world_from_camera")
+    # a scan's or a sequence's result is in its input's frame: its levelled world is recorded the same way
+    known = result.extras.get("world_from_input" if result.frame == "world" else "world_from_camera")
     if known is None:
         pose = np.eye(4)
         pose[:3, :3] = CAMERA_TO_ZUP

@@ -138,6 +138,10 @@ def warm_up_room() -> None:
         room_gains(room, np.zeros(3), c, a, R, params)
         room_values(room, c, a, R, params)
     space_minimal_sets(SpaceCells.of(p), torch.tensor([0]), 6, torch.Generator().manual_seed(0), (0.3,))
+    t = torch.from_numpy(p)
+    refine_surface(
+        t, t[0], torch.full((3,), 0.1, dtype=torch.float64), torch.eye(3, dtype=torch.float64), 1e-3, 1.0
+    )
     _WARM = True
 
 

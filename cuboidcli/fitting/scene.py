@@ -55,7 +55,7 @@ class SceneConfig:
     ``auto`` = views when the points keep their cameras, else inside."""
     up: tuple[float, float, float] | None = None
     """The up direction in the input's frame; None = estimated (the Manhattan axis nearest the hint)."""
-    virtual_view_m: float = 0.3
+    virtual_view_m: float = 0.5
     """A bare cloud's points are taken as seen from this far out of their surface, along the normal turned
     towards the inside of the room (m)."""
 
@@ -130,6 +130,8 @@ def fit_scene(
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
+    if getattr(sampler, "name", "") == "learned":
+        raise ValueError("the learned sampler weighs the pixels of a depth map; fit a room with sequential")
     visibility = scene.visibility
     if visibility == "auto":
         visibility = "views"

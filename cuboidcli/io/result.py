@@ -16,25 +16,29 @@ from cuboidcli.io.atomic import atomic_write_json
 from cuboidcli.io.jsonfile import read_json
 
 SCHEMA = "cuboids/1"
+#: Frames of the cuboids: a frame's OpenCV camera coordinates, or a scan's or a sequence's own world frame.
+FRAMES = ("opencv", "world")
 
 
 @dataclass
 class FitResult:
-    """Everything a "cuboids/1" file holds."""
+    """Everything a "cuboids/1" file holds. ``camera`` is None only for a ``world`` result of a bare point
+    cloud or mesh, which no camera saw (a sequence's result keeps its depth camera)."""
 
-    camera: Camera
+    camera: Camera | None
     cuboids: list[Cuboid]
     settings: dict = field(default_factory=dict)
     timing_s: dict = field(default_factory=dict)
     input: dict = field(default_factory=dict)
     extras: dict = field(default_factory=dict)
+    frame: str = "opencv"
 
     def to_json(self) -> dict:
         d = {
             "schema": SCHEMA,
             "version": __version__,
-            "camera": self.camera.to_dict(),
-            "frame": "opencv",
+            "camera": None if self.camera is None else self.camera.to_dict(),
+            "frame": self.frame,
             "cuboids": [c.to_json(i) for i, c in enumerate(self.cuboids)],
             "settings": self.settings,
             "timing_s": self.timing_s,
@@ -49,12 +53,13 @@ class FitResult:
         check_result_json(d)
         known = {"schema", "version", "camera", "frame", "cuboids", "settings", "timing_s", "input"}
         return cls(
-            camera=Camera.from_dict(d["camera"]),
+            camera=None if d["camera"] is None else Camera.from_dict(d["camera"]),
             cuboids=[Cuboid.from_json(c) for c in d.get("cuboids", [])],
             settings=d.get("settings", {}),
             timing_s=d.get("timing_s", {}),
             input=d.get("input", {}),
             extras={k: v for k, v in d.items() if k not in known},
+            frame=d.get("frame", "opencv"),
         )
 
 
@@ -101,22 +106,27 @@ def check_result_json(d) -> None:
         raise ValueError(f"not a {SCHEMA} file: it holds a JSON {type(d).__name__}, not an object")
     if d.get("schema") != SCHEMA:
         raise ValueError(f"not a {SCHEMA} file (field 'schema' is {d.get('schema')!r})")
-    if d.get("frame", "opencv") != "opencv":
-        raise ValueError(f"unsupported frame {d.get('frame')!r} (field 'frame'); expected 'opencv'")
-    cam = d.get("camera")
-    if cam is None:
+    frame = d.get("frame", "opencv")
+    if frame not in FRAMES:
+        raise ValueError(f"unsupported frame {frame!r} (field 'frame'); expected one of {', '.join(FRAMES)}")
+    if "camera" not in d:
         raise ValueError("field 'camera' is missing (fx, fy, cx, cy, width, height)")
-    if not isinstance(cam, dict):
+    cam = d["camera"]
+    if cam is None and frame == "world":
+        cam = {}  # a bare scan's result: no camera saw it
+    elif cam is None:
+        raise ValueError("field 'camera' is null; a result in the 'opencv' frame needs its camera")
+    elif not isinstance(cam, dict):
         raise ValueError("field 'camera' must be an object with fx, fy, cx, cy, width, height")
-    for key in ("fx", "fy", "cx", "cy", "width", "height"):
+    for key in ("fx", "fy", "cx", "cy", "width", "height") if cam else ():
         if key not in cam:
             raise ValueError(f"field 'camera.{key}' is missing")
         if not _is_number(cam[key]):
             raise ValueError(f"field 'camera.{key}' must be a finite number (got {cam[key]!r:.40})")
-    for key in ("fx", "fy", "width", "height"):
+    for key in ("fx", "fy", "width", "height") if cam else ():
         if cam[key] <= 0:
             raise ValueError(f"field 'camera.{key}' must be positive (got {cam[key]})")
-    for key in ("width", "height"):
+    for key in ("width", "height") if cam else ():
         if cam[key] != int(cam[key]):
             raise ValueError(f"field 'camera.{key}' must be a whole number of pixels (got {cam[key]})")
     if "cuboids" not in d:

@@ -1,0 +1,97 @@
+"""`cuboids fit ROOM`: a point cloud or a posed sequence folder, one world-frame result."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from cuboidcli.cli.main import app
+from cuboidcli.io.result import read_result
+from tests.fitting.test_scene_fit import scanned_room
+
+runner = CliRunner()
+SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
+
+
+def run(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+def test_a_point_cloud_gives_a_world_frame_result_and_its_outputs(tmp_path):
+    src = tmp_path / "room.npy"
+    np.save(src, scanned_room().astype(np.float32))
+    out = tmp_path / "room.json"
+    r = run("fit", src, "-o", out, "--voxel", "0.1", "--glb", "--ply", "-q")
+    assert r.exit_code == 0, r.output
+    d = json.loads(out.read_text())
+    assert d["frame"] == "world" and d["camera"] is None
+    assert d["settings"]["scene"]["max_cuboids"] == 40 and d["settings"]["scene"]["voxel_m"] == 0.1
+    kinds = [c["kind"] for c in d["cuboids"]]
+    assert "floor" in kinds and kinds.count("wall") >= 3
+    assert np.allclose(np.asarray(d["world_from_input"])[:3, :3] @ d["up"]["up"], [0, 0, 1], atol=1e-6)
+    assert d["timing_s"]["total"] > 0 and "load" in d["timing_s"]
+    res = read_result(out)  # the schema takes a world result without a camera
+    assert res.frame == "world" and res.camera is None and len(res.cuboids) == len(kinds)
+    for name in ("room.glb", "room_points.ply", "room_cuboids.ply"):
+        assert (tmp_path / name).stat().st_size > 0
+
+
+@pytest.mark.parametrize(
+    "make, message",
+    [
+        (lambda p: np.save(p, np.random.rand(10, 3)), "at least 100"),
+        (lambda p: np.save(p, np.random.rand(5000, 3) * 4000), "--unit mm"),
+    ],
+)
+def test_bad_clouds_are_one_line_and_exit_2_with_nothing_written(tmp_path, make, message):
+    src = tmp_path / "bad.npy"
+    make(src)
+    out = tmp_path / "bad.json"
+    r = run("fit", src, "-o", out)
+    assert r.exit_code == 2
+    assert message in r.output and len(r.output.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_room_options_are_checked(tmp_path):
+    src = tmp_path / "room.npy"
+    np.save(src, scanned_room())
+    assert "choose auto" in run("fit", src, "--visibility", "sideways").output
+    assert "--up" in run("fit", src, "--up", "0,0,0").output
+    assert run("fit", src, "--workers", "2").exit_code == 2
+
+
+def test_a_synthetic_scan_sequence_is_fused_and_fitted(tmp_path):
+    from cuboidcli.camera import Camera
+    from cuboidcli.synth.scan import generate_room_scan, write_room_scan
+
+    cam = Camera.preset("nyu").scaled(0.25)
+    root = write_room_scan(tmp_path / "scan", generate_room_scan(3, views=4, camera=cam))
+    out = tmp_path / "scan.json"
+    r = run("fit", root, "-o", out, "--voxel", "0.1", "--overlay", "-q")
+    assert r.exit_code == 0, r.output
+    d = json.loads(out.read_text())
+    assert d["frame"] == "world" and d["camera"]["width"] == cam.width
+    assert d["fit_info"]["visibility"] == "views" and d["up"]["source"] == "estimated"
+    assert np.allclose(d["up"]["up"], [0, 0, 1], atol=0.02)  # the synthetic world is z up
+    names = {f["name"] for f in d["frames"]}
+    assert len(names) == 4 and all(set(c["frames"]) <= names for c in d["cuboids"])
+    assert any(c["frames"] for c in d["cuboids"])
+    floors = [c for c in d["cuboids"] if c["kind"] == "floor"]
+    assert floors and abs(floors[0]["center"][2]) < 0.1
+    assert len(list(tmp_path.glob("scan_overlay_*.png"))) == 3
+
+
+@pytest.mark.skipif(not (SHARED / "redwood").is_dir(), reason="needs ../shared/data")
+def test_the_real_redwood_sequence(tmp_path):
+    out = tmp_path / "rw.json"
+    r = run("fit", SHARED / "redwood", "-o", out, "-q")
+    assert r.exit_code == 0, r.output
+    d = json.loads(out.read_text())
+    kinds = [c["kind"] for c in d["cuboids"]]
+    assert kinds.count("floor") == 1 and kinds.count("wall") >= 2
+    assert np.allclose(d["up"]["up"], [0, 1, 0], atol=0.05)  # this trajectory's world is y up
