@@ -346,8 +346,9 @@ class Fitter:
             viewpoints=cloud.viewpoints, up_hint=data.up_hint, progress=progress,
         )  # fmt: skip
         info.fit.timing_s = {"load": round(data.load_seconds, 6), **info.timing_s}
+        extra = {"weights": _str_or_none(self.weights), "onnx": _str_or_none(self.onnx)}
         record = scene_result(
-            data, cuboids, info, self.config, scene, self.solver.name, self.sampler.name, path
+            data, cuboids, info, self.config, scene, self.solver.name, self.sampler.name, path, extra
         )
         record.timing_s = info.fit.timing_s
         return SceneResult(record, info, data)

@@ -145,6 +145,7 @@ def scene_result(
     solver_name: str,
     sampler_name: str,
     path: str | Path,
+    extra_settings: dict | None = None,
 ) -> FitResult:
     """The "cuboids/1" result of a room, in the input's frame (``"frame": "world"``)."""
     cloud, seq = scene_input.cloud, scene_input.sequence
@@ -155,6 +156,7 @@ def scene_result(
         "theta_used": fit.theta,
         "solver_name": solver_name,
         "sampler_name": sampler_name,
+        **(extra_settings or {}),
     }
     frames = seen_by(cloud, info.point_labels, len(cuboids))
     out = []

@@ -59,7 +59,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("fitting",),
     ("weights",),
     ("export", "synth"),
-    ("factories", "frame", "scene", "api", "scaleout", "folder"),
+    ("factories", "frame", "scene", "api", "scaleout", "folder", "room_folder"),
     ("evaluation",),
     ("learn",),
     ("cli",),

@@ -282,7 +282,7 @@ def fit(
     if image is not None and depth is None and image.exists():
         from cuboidcli.scene import is_scene_input
 
-        if is_scene_input(image):
+        if is_scene_input(image) or _is_rooms_folder(image):
             _fit_room(options, ctx_max_cuboids=_given(options, "max_cuboids"))
             return
     if depth is None and image is None:
@@ -521,11 +521,23 @@ def _given(options: dict, name: str):
     return None if value == getattr(DEFAULTS, name) else value
 
 
-def _fit_room(o: dict, ctx_max_cuboids: int | None) -> None:
-    from cuboidcli.cli.fit_scene import fit_room, scene_config
+def _is_rooms_folder(path: Path) -> bool:
+    """A folder of rooms (scan files, sequence sub-folders) and no images."""
+    if not path.is_dir() or any(p.suffix.lower() in IMAGE_SUFFIXES for p in path.iterdir()):
+        return False
+    from cuboidcli.room_folder import rooms_in
 
-    if o["workers"] > 1 or o["ray"] or o["ray_address"]:
-        fail("--workers and --ray fit the frames of a folder of depth maps; a room is fitted in one process")
+    return bool(rooms_in(path))
+
+
+def _fit_room(o: dict, ctx_max_cuboids: int | None) -> None:
+    from cuboidcli.cli.fit_scene import fit_room, fit_rooms_folder, scene_config
+    from cuboidcli.scene import is_scene_input
+
+    folder = not is_scene_input(o["image"])
+    ray_at = ray_target(o["workers"], o["ray"], o["ray_address"])
+    if (o["workers"] > 1 or ray_at is not None) and not folder:
+        fail("--workers and --ray fit the rooms of a folder; one room is fitted in one process")
     if o["sampler"] == "learned":
         fail("--sampler learned weighs the pixels of a depth map; a room is fitted with sequential")
     config = fit_config(o)
@@ -538,6 +550,16 @@ def _fit_room(o: dict, ctx_max_cuboids: int | None) -> None:
             fitter = fitter_for(config, _str_or_none(o["weights"]), _str_or_none(o["onnx"]))
         except (ValueError, FileNotFoundError, ImportError) as e:
             fail(str(e))
+        if folder:
+            from cuboidcli.room_folder import RoomJob
+
+            job = RoomJob(
+                config, scene, _str_or_none(o["weights"]), _str_or_none(o["onnx"]), o["unit"], o["every"],
+                o["intrinsics"], o["depth_scale"], o["glb"], o["ply"], o["with_points"], scenes,
+            )  # fmt: skip
+            engine = _Engine(o["workers"], ray_at)
+            fit_rooms_folder(job, o["image"], o["output"], o["quiet"], engine, o["skip_existing"])
+            return
         outputs = {
             "glb": o["glb"], "ply": o["ply"], "overlay": o["overlay"], "with_points": o["with_points"],
             "scenes": scenes,

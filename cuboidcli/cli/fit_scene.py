@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import typer
 from rich.progress import TimeElapsedColumn
 from rich.table import Table
 
@@ -101,3 +102,58 @@ def fit_room(
     )
     for p in written:
         out.print(f"wrote {p}")
+
+
+def fit_rooms_folder(
+    job, folder: Path, output: Path | None, quiet: bool, engine, skip_existing: bool
+) -> None:
+    """Fit every room of a folder (scan files, sequence sub-folders) on ``engine`` (local processes or
+    Ray), one JSON each in ``output``; rooms whose outputs exist with the same settings are skipped; ends
+    with a summary, exit 1 if any room failed."""
+    from cuboidcli.cli.common import console
+    from cuboidcli.room_folder import fit_room_file, out_name, room_is_complete, rooms_in
+    from cuboidcli.scaleout import Outcome, Summary, run_tasks
+
+    rooms = rooms_in(folder)
+    out_dir = output or Path(f"{folder.name}_cuboids")
+    if out_dir.suffix == ".json" or (out_dir.exists() and not out_dir.is_dir()):
+        fail(f"-o {out_dir}: give a folder for the rooms of {folder}")
+    summary = Summary()
+    todo = []
+    for room in rooms:
+        if skip_existing and room_is_complete(out_dir / out_name(room), job):
+            summary.add(Outcome(room.name, "skipped"))
+        else:
+            todo.append(room)
+    if not quiet and summary.skipped:
+        console.print(
+            f"[cyan]note:[/] skipped {summary.skipped} rooms whose outputs exist in {out_dir}/",
+            highlight=False,
+        )
+    tasks = [(job, str(r), str(out_dir / out_name(r))) for r in todo]
+    with progress_bar("{task.description}", TimeElapsedColumn(), disable=quiet) as prog:
+        task = prog.add_task(f"fitting {len(tasks)} rooms on {engine.describe()}", total=len(tasks))
+
+        def on_result(i: int, res: Outcome) -> None:
+            summary.add(res)
+            for note in res.notes:
+                console.print(f"[yellow]warning:[/] {res.name}: {note}", highlight=False)
+            if res.status == "failed":
+                console.print(f"[red]failed[/] {res.name}: {res.message}", highlight=False)
+                desc = f"{res.name}: failed"
+            else:
+                n, seconds, points = res.value
+                desc = f"{res.name}: {n} cuboids, {points} points, {seconds:.1f} s"
+            prog.update(task, advance=1, description=desc)
+
+        if tasks:
+            try:
+                names = [r.name for r in todo]
+                run = {"workers": engine.workers, "ray": engine.ray, "on_result": on_result}
+                run_tasks(fit_room_file, tasks, names, **run)
+            except ValueError as e:  # the engine could not start (Ray missing, a bad address)
+                fail(str(e))
+    if not quiet or summary.failed:
+        out.print(f"{summary.line()}: results in {out_dir}/")
+    if summary.failed:
+        raise typer.Exit(1)

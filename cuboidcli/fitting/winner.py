@@ -303,7 +303,7 @@ def align_winner(
     c0, a0 = c[0].double().cpu().numpy(), a[0].double().cpu().numpy()
 
     all_pts = pts.double().cpu().numpy()
-    room = is_room_slab(all_pts, c0, a0, r0, alignment.viewpoint)
+    room = is_room_slab(all_pts, c0, a0, r0, alignment.viewpoint, alignment.up)
     # the room's shell stands on the room's axes even where bent depth fits a tilted plane a little better
     keep = ROOM_KEEP if room else ALIGN_KEEP
 
@@ -403,17 +403,27 @@ def beyond_share(
     rotation: np.ndarray,
     k: int,
     viewpoint: np.ndarray | None = None,
+    up: np.ndarray | None = None,
 ) -> float:
     """The share of ``points`` (N, 3) that lie more than :data:`ROOM_MARGIN_M` beyond the far face of a
     slab with thickness axis ``k`` (the face away from ``viewpoint``, None = the camera at the origin),
-    along its normal."""
+    along its normal. Seen from a ``viewpoint`` inside a room, only the points behind an upright slab
+    itself (within its rectangle, grown by the margin; ``up`` (3,) says which slabs are upright) count: a
+    whole room holds more beyond any one wall's plane than a frame's field of view does (a corridor seen
+    through another wall's door), while a floor still has nothing anywhere below it."""
     if points.shape[0] == 0:
         return 0.0
     n = rotation[:, k]
     if n @ (center if viewpoint is None else center - viewpoint) < 0:
         n = -n
     far = float(n @ center) + float(half[k])
-    return float(np.mean(points @ n > far + ROOM_MARGIN_M))
+    beyond = points @ n > far + ROOM_MARGIN_M
+    if viewpoint is not None and up is not None and abs(float(n @ up)) < 0.5:
+        local = (points - center) @ rotation
+        for j in range(3):
+            if j != k:
+                beyond &= np.abs(local[:, j]) <= half[j] + ROOM_MARGIN_M
+    return float(np.mean(beyond))
 
 
 def is_room_slab(
@@ -422,13 +432,14 @@ def is_room_slab(
     half: np.ndarray,
     rotation: np.ndarray,
     viewpoint: np.ndarray | None = None,
+    up: np.ndarray | None = None,
 ) -> bool:
     """Whether a box is a slab of the room's shell (wall, floor, ceiling): a slab (:func:`thin_axis`) with
     at most :data:`ROOM_SHARE` of the frame's ``points`` (N, 3) beyond it seen from ``viewpoint``
     (:func:`beyond_share`). This needs no labels; a slab on furniture standing against a wall (a bookcase's
     side) can pass it too."""
     k = thin_axis(np.asarray(half, dtype=np.float64))
-    return k >= 0 and beyond_share(points, center, half, rotation, k, viewpoint) <= ROOM_SHARE
+    return k >= 0 and beyond_share(points, center, half, rotation, k, viewpoint, up) <= ROOM_SHARE
 
 
 #: A room slab is a floor or ceiling when its thickness axis is within this angle of gravity, a wall when
@@ -444,7 +455,7 @@ def cuboid_kind(
     thickness against ``down`` (3,), unit: level and below the viewpoint a floor, level and above it a
     ceiling, upright a wall."""
     c, a, R = cuboid.center, cuboid.half_size, cuboid.rotation
-    if not is_room_slab(points, c, a, R, viewpoint):
+    if not is_room_slab(points, c, a, R, viewpoint, -down):
         return "object"
     cos = abs(float(R[:, thin_axis(a)] @ down))
     if cos >= math.cos(math.radians(KIND_ANGLE_DEG)):

@@ -95,3 +95,21 @@ def test_the_real_redwood_sequence(tmp_path):
     kinds = [c["kind"] for c in d["cuboids"]]
     assert kinds.count("floor") == 1 and kinds.count("wall") >= 2
     assert np.allclose(d["up"]["up"], [0, 1, 0], atol=0.05)  # this trajectory's world is y up
+
+
+def test_a_folder_of_rooms_runs_on_workers_and_resumes(tmp_path):
+    rooms = tmp_path / "rooms"
+    rooms.mkdir()
+    np.save(rooms / "a.npy", scanned_room(0).astype(np.float32))
+    np.save(rooms / "b.npy", scanned_room(1).astype(np.float32))
+    out = tmp_path / "out"
+    r = run("fit", rooms, "-o", out, "--voxel", "0.1", "--workers", "2", "--glb")
+    assert r.exit_code == 0, r.output
+    assert "2 done, 0 skipped, 0 failed" in r.output
+    for name in ("a_cuboids.json", "b_cuboids.json", "a_cuboids.glb"):
+        assert (out / name).is_file()
+    assert json.loads((out / "a_cuboids.json").read_text())["frame"] == "world"
+    again = run("fit", rooms, "-o", out, "--voxel", "0.1", "--glb")
+    assert "0 done, 2 skipped" in again.output
+    other = run("fit", rooms, "-o", out, "--voxel", "0.12", "--glb")  # other settings: fitted again
+    assert "2 done, 0 skipped" in other.output

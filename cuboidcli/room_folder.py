@@ -1,0 +1,102 @@
+"""Fitting every room of a folder (scan files, or sequence folders inside it), resumably, on any engine of
+:mod:`cuboidcli.scaleout` (local processes or Ray): what ``cuboids fit DIR`` runs for a folder of rooms,
+such as a data set of scans.
+
+A room's output is ``<out>/<name>_cuboids.json`` plus the files asked for; the JSON is written last and
+atomically, so its presence means the room is complete, and a rerun skips rooms whose JSON was fitted with
+the same settings.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.scene import SceneConfig
+from cuboidcli.scaleout import Outcome, failed
+
+
+@dataclass(frozen=True)
+class RoomJob:
+    """Everything but the input path: how to read a room, fit it and write its outputs. Picklable: workers
+    and Ray tasks build their Fitter from it once (:func:`cuboidcli.folder.fitter_for`)."""
+
+    config: FitConfig
+    scene: SceneConfig
+    weights: str | None = None
+    onnx: str | None = None
+    unit: str = "m"
+    every: int = 1
+    intrinsics: str | None = None
+    depth_scale: float | None = None
+    glb: bool = False
+    ply: bool = False
+    with_points: bool = False
+    scenes: tuple[str, ...] = ()
+
+    def outputs(self, out_json: Path) -> list[Path]:
+        """The files a complete room has, the JSON last."""
+        stem = out_json.with_name(out_json.name.removesuffix(".json"))
+        extra = [Path(f"{stem}.glb")] if self.glb else []
+        if self.ply:
+            extra += [Path(f"{stem}_points.ply"), Path(f"{stem}_cuboids.ply")]
+        if self.scenes:
+            from cuboidcli.export import scene_path
+
+            extra += [scene_path(stem, kind) for kind in self.scenes]
+        return [*extra, out_json]
+
+
+def rooms_in(folder: Path) -> list[Path]:
+    """The rooms of a folder, sorted: its scan files and its sub-folders laid out as sequences."""
+    from cuboidcli.scene import is_scene_input
+
+    return sorted(p for p in folder.iterdir() if not p.name.startswith(".") and is_scene_input(p))
+
+
+def out_name(room: Path) -> str:
+    return f"{room.name if room.is_dir() else room.stem}_cuboids.json"
+
+
+def room_is_complete(out_json: Path, job: RoomJob) -> bool:
+    """The room's outputs exist and its JSON was fitted with ``job``'s settings."""
+    from cuboidcli.frame import same_settings
+    from cuboidcli.io.result import read_result
+
+    if not all(p.is_file() for p in job.outputs(out_json)):
+        return False
+    try:
+        saved = read_result(out_json)
+    except (OSError, ValueError, KeyError, TypeError):
+        return False
+    s = saved.settings if isinstance(saved.settings, dict) else {}
+    want_scene = json.loads(json.dumps(job.scene.to_dict()))
+    config = replace(job.config, max_cuboids=job.scene.max_cuboids)
+    extra = {"weights": job.weights, "onnx": job.onnx}
+    return s.get("scene") == want_scene and same_settings(s, config, extra)
+
+
+def fit_room_file(job: RoomJob, source: str, out_json: str) -> Outcome:
+    """Fit one room and write its outputs; a failed Outcome (one line) for unusable input. ``value`` is
+    (cuboids, fitting seconds, fitting points)."""
+    import warnings
+
+    from cuboidcli.folder import fitter_for
+
+    name = Path(source).name
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            fitter = fitter_for(job.config, job.weights, job.onnx)
+            res = fitter.fit_scene(
+                source, scene=job.scene, unit=job.unit, every=job.every, intrinsics=job.intrinsics,
+                depth_scale=job.depth_scale,
+            )  # fmt: skip
+            res.save(out_json, glb=job.glb, ply=job.ply, with_points=job.with_points, scenes=job.scenes)
+    except Exception as e:  # this room fails; the run goes on
+        return failed(name, e)
+    notes = list(res.record.input.get("warnings", [])) + [str(w.message) for w in caught]
+    value = (len(res.cuboids), res.record.timing_s["total"], res.info.fit.n_points)
+    return Outcome(name, "done", value=value, notes=notes)
