@@ -17,7 +17,7 @@ from torch import Tensor
 
 from cuboidcli.fitting.backend import NOMINATED, PRUNE_MARGIN, ScoreParams, ScoringBackend
 from cuboidcli.geometry import kernels as K
-from cuboidcli.geometry.room import RoomPoints, room_gains, room_params, room_values
+from cuboidcli.geometry.room import RoomPoints, refine_surface_adam, room_gains, room_params, room_values
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 #: Nomination scores every hypothesis on every NOMINATION_STEP-th point of each block.
@@ -60,9 +60,23 @@ def refine_surface(
     return cb.to(center.dtype), ab.to(half.dtype), Rb.to(rotation.dtype)
 
 
+def refine_surface_fused(
+    points: Tensor, center: Tensor, half: Tensor, rotation: Tensor, a_min: float, a_max: float,
+    iters: int = 25, lr: float = 0.003,
+) -> tuple[Tensor, Tensor, Tensor]:  # fmt: skip
+    """:func:`refine_surface` in one numba loop (the same Adam; the rotation's gradient by central
+    differences): tensors in, float64 tensors out."""
+    r = matrix_to_axis_angle(rotation.double()).numpy()
+    init = np.concatenate([_np64(center), r, _np64(half)])
+    best = refine_surface_adam(_np64(points), init, float(a_min), float(a_max), lr, iters)
+    R = axis_angle_to_matrix(torch.from_numpy(best[3:6].copy()))
+    return torch.from_numpy(best[:3].copy()), torch.from_numpy(best[6:].copy()), R
+
+
 class RoomBackend(ScoringBackend):
     """Values and gains of cuboids against a room's points (:class:`RoomPoints`, block order), with
-    provable pruning per block; refinement on the plain surface distance (:func:`refine_surface`). CPU."""
+    provable pruning per block; refinement on the plain surface distance (:func:`refine_surface_fused`,
+    the numba form of :func:`refine_surface`). CPU."""
 
     name = "room"
     prunes = True
@@ -96,7 +110,7 @@ class RoomBackend(ScoringBackend):
         return room_gains(room, _np64(state), *boxes, self._params(sp), prune_below)
 
     def refine(self, points, center, half, rotation, a_min: float, a_max: float):
-        return refine_surface(points, center, half, rotation, a_min, a_max)
+        return refine_surface_fused(points, center, half, rotation, a_min, a_max)
 
     def select_best(
         self, points, centers, half_sizes, rotations, state, sp: ScoreParams, generator,
@@ -139,7 +153,7 @@ def warm_up_room() -> None:
         room_values(room, c, a, R, params)
     space_minimal_sets(SpaceCells.of(p), torch.tensor([0]), 6, torch.Generator().manual_seed(0), (0.3,))
     t = torch.from_numpy(p)
-    refine_surface(
+    refine_surface_fused(
         t, t[0], torch.full((3,), 0.1, dtype=torch.float64), torch.eye(3, dtype=torch.float64), 1e-3, 1.0
     )
     _WARM = True

@@ -140,3 +140,29 @@ def test_a_single_depth_map_fits_bit_for_bit_as_before():
     assert info.gains[0] == 2083.682803027642
     digest = hashlib.sha256(arr.astype(np.float64).tobytes()).hexdigest()
     assert digest == "65a82775a105a9d54df29bed43eff231d09ef6aebe2c11813d7f6fb7bb347cdd"
+
+
+def test_the_fused_surface_refinement_equals_the_torch_one():
+    import torch
+
+    from cuboidcli.fitting.room_backend import refine_surface, refine_surface_fused
+    from cuboidcli.geometry.rotations import axis_angle_to_matrix
+
+    rng = np.random.default_rng(0)
+    a = np.array([0.5, 0.3, 0.2])
+    R = axis_angle_to_matrix(torch.tensor([0.1, 0.2, 0.3], dtype=torch.float64)).numpy()
+    u = rng.uniform(-1, 1, (500, 3))
+    k = rng.integers(0, 3, 500)
+    u[np.arange(500), k] = np.sign(u[np.arange(500), k])
+    pts = torch.from_numpy((u * a) @ R.T + np.array([1.0, 2.0, 0.5]))
+    start = (
+        torch.tensor([1.03, 1.98, 0.52], dtype=torch.float64),
+        torch.tensor([0.45, 0.33, 0.18], dtype=torch.float64),
+        axis_angle_to_matrix(torch.tensor([0.12, 0.18, 0.31], dtype=torch.float64)),
+    )
+    ref = refine_surface(pts, *start, 1e-3, 2.0)
+    fused = refine_surface_fused(pts, *start, 1e-3, 2.0)
+    for x, y in zip(ref, fused, strict=True):
+        assert torch.allclose(x, y, atol=1e-6)
+    # and it moves towards the true box
+    assert np.abs(fused[0].numpy() - [1.0, 2.0, 0.5]).max() < np.abs(start[0].numpy() - [1.0, 2.0, 0.5]).max()
