@@ -228,8 +228,8 @@ def write_scene_outputs(
     with_points: bool = False,
     scenes: tuple[str, ...] = (),
 ) -> list[Path]:
-    """Write the JSON and the outputs asked for beside it; returns the paths written. The GLB is levelled
-    (+Y up), its optional points are the input's coloured by cuboid; the PLY has the input's points
+    """Write the outputs asked for and then the JSON beside them; returns the paths written. The GLB is
+    levelled (+Y up), its optional points are the input's coloured by cuboid; the PLY has the input's points
     coloured by cuboid (grey: none) and the cuboid meshes; overlays are drawn on the first, middle and
     last frame of a sequence with the world cuboids projected into them."""
     from cuboidcli.export import scene_path, write_scene
@@ -238,7 +238,7 @@ def write_scene_outputs(
     from cuboidcli.io.result import write_result
 
     stem = out_json.with_suffix("")
-    written = [write_result(out_json, result)]
+    written = []
     cloud = scene_input.cloud
     colors = label_colors(info.point_labels)
     if glb:
@@ -254,7 +254,15 @@ def write_scene_outputs(
     if overlay and scene_input.sequence is not None:
         written.extend(_write_overlays(result, scene_input.sequence, stem))
     for kind in scenes:
-        written.append(write_scene(kind, result, scene_path(stem, kind)))
+        path = scene_path(stem, kind)
+        if kind == "html":  # the room's own points in the viewer
+            from cuboidcli.export.html import write_html
+
+            written.append(write_html(result, path, points=cloud.points, point_colors=colors))
+        else:
+            written.append(write_scene(kind, result, path))
+    # the JSON last: its presence means every output of the room was written
+    written.append(write_result(out_json, result))
     return written
 
 

@@ -93,14 +93,28 @@ def _view_points(result, depth_m: np.ndarray, rgb: np.ndarray | None, pose: np.n
     return world, colors
 
 
-def figure(result, *, depth_m: np.ndarray | None = None, rgb: np.ndarray | None = None):
-    """The plotly Figure of the 3D view: the points (with ``depth_m``) and one Mesh3d plus its edges per
-    box, in the world frame; the camera drawn as a small marker at its position."""
+def figure(
+    result,
+    *,
+    depth_m: np.ndarray | None = None,
+    rgb: np.ndarray | None = None,
+    points: np.ndarray | None = None,
+    point_colors: np.ndarray | None = None,
+):
+    """The plotly Figure of the 3D view: the points (of ``depth_m``, or a room's ``points`` (N, 3) in the
+    result's frame with ``point_colors`` (N, 3) uint8) and one Mesh3d plus its edges per box, in the world
+    frame; a frame's camera drawn as a small marker at its position."""
     go = import_plotly()
     pose, has_gravity, boxes = _scene(result)
     fig = go.Figure()
+    pts = None
     if depth_m is not None:
         pts, cols = _view_points(result, np.asarray(depth_m, dtype=np.float64), rgb, pose)
+    elif points is not None:
+        step = max(1, -(-len(points) // MAX_VIEW_POINTS))
+        pts = np.asarray(points, dtype=np.float64)[::step] @ pose[:3, :3].T + pose[:3, 3]
+        cols = np.full((len(pts), 3), 160, np.uint8) if point_colors is None else point_colors[::step]
+    if pts is not None:
         fig.add_trace(
             go.Scatter3d(
                 x=pts[:, 0],
@@ -149,6 +163,8 @@ def figure(result, *, depth_m: np.ndarray | None = None, rgb: np.ndarray | None 
                 hoverinfo="skip",
             )
         )
+    if result.frame == "world":  # a room: no single camera; look from above one corner
+        return _layout(fig, {"x": -1.2, "y": -1.2, "z": 1.0}, "world, z up (levelled: the room's up)")
     cam = pose[:3, 3]
     fig.add_trace(
         go.Scatter3d(
@@ -165,6 +181,10 @@ def figure(result, *, depth_m: np.ndarray | None = None, rgb: np.ndarray | None 
     fwd = fwd / np.linalg.norm(fwd) if np.linalg.norm(fwd) > 1e-6 else np.array([0.0, 1.0, 0.0])
     eye = {"x": -1.6 * fwd[0], "y": -1.6 * fwd[1], "z": 0.9}  # behind and above the input camera
     frame = "world, z up (levelled by gravity)" if has_gravity else "world (no gravity: camera-aligned)"
+    return _layout(fig, eye, frame)
+
+
+def _layout(fig, eye: dict, frame: str):
     fig.update_layout(
         scene={
             "aspectmode": "data",
@@ -251,27 +271,35 @@ def cuboid_table(result, boxes) -> str:
     return f"<table>\n{head}\n" + "\n".join(rows) + "\n</table>"
 
 
-def html_page(result, *, depth_m: np.ndarray | None = None, rgb: np.ndarray | None = None) -> str:
+def html_page(
+    result,
+    *,
+    depth_m: np.ndarray | None = None,
+    rgb: np.ndarray | None = None,
+    points: np.ndarray | None = None,
+    point_colors: np.ndarray | None = None,
+) -> str:
     """The viewer page as a string (see :func:`write_html`)."""
     from cuboidcli.export.overlay import render_images
 
     result = getattr(result, "record", result)  # an api.Result holds its FitResult as ``record``
-    fig = figure(result, depth_m=depth_m, rgb=rgb)
+    fig = figure(result, depth_m=depth_m, rgb=rgb, points=points, point_colors=point_colors)
     _pose, has_gravity, boxes = _scene(result)
-    panel = render_images(result.camera, result.cuboids, rgb=rgb, depth_m=depth_m)["panel"]
+    room = result.frame == "world"  # a room's result: no single camera, no image panel
+    panel = None if room else render_images(result.camera, result.cuboids, rgb=rgb, depth_m=depth_m)["panel"]
     cam = result.camera
     total = result.timing_s.get("total") if isinstance(result.timing_s, dict) else None
-    source = result.input.get("depth") or result.input.get("rgb") or "" if result.input else ""
+    source = result.input.get("depth") or result.input.get("rgb") or result.input.get("path") or ""
     info = [
         f"{len(result.cuboids)} cuboids",
-        f"camera {cam.width}x{cam.height}, fx {cam.fx:.1f}",
+        "a room, in its own frame" if room else f"camera {cam.width}x{cam.height}, fx {cam.fx:.1f}",
         "gravity: levelled, z up" if has_gravity else "no gravity estimate",
     ]
     if total is not None:
         info.append(f"fitted in {total:.2f} s")
     if source:
         info.append(f"input {html.escape(str(source))}")
-    if depth_m is None:
+    if depth_m is None and points is None:
         info.append("no depth map given: boxes only")
     from cuboidcli import __version__
 
@@ -282,8 +310,9 @@ def html_page(result, *, depth_m: np.ndarray | None = None, rgb: np.ndarray | No
         f"<h2>Cuboids</h2>\n{cuboid_table(result, boxes)}\n"
         '<p class="muted">centres in the world frame of the 3D view; sizes are full edge lengths along '
         "the box's own axes.</p>\n"
-        f'<h2>Overlay</h2>\n<img class="panel" alt="overlay panel" src="{png_data_uri(panel)}">\n'
     )
+    if panel is not None:
+        body += f'<h2>Overlay</h2>\n<img class="panel" alt="overlay panel" src="{png_data_uri(panel)}">\n'
     return page("cuboids", body)
 
 
@@ -293,6 +322,8 @@ def write_html(
     *,
     depth_m: np.ndarray | None = None,
     rgb: np.ndarray | None = None,
+    points: np.ndarray | None = None,
+    point_colors: np.ndarray | None = None,
 ) -> Path:
     """Write a self-contained HTML page of ``result`` (a FitResult, or an api.Result) to ``path``,
     atomically: the 3D view (points of ``depth_m`` (H, W) metres, subsampled to about
@@ -302,5 +333,5 @@ def write_html(
     if depth_m is None and hasattr(result, "record"):
         depth_m = result.depth_m
         rgb = result.rgb if rgb is None else rgb
-    text = html_page(result, depth_m=depth_m, rgb=rgb)
+    text = html_page(result, depth_m=depth_m, rgb=rgb, points=points, point_colors=point_colors)
     return atomic_write_text(path, text)

@@ -55,6 +55,8 @@ def scene_spec(result: FitResult):
             quat=[float(v) for v in _quat_wxyz(rot)],
             rgba=[v / 255.0 for v in rgba],
         )
+    if result.frame == "world":  # a room's result: no single camera to place
+        return spec
     pose = camera_pose_world(result)
     cam = result.camera
     fovy = math.degrees(2.0 * math.atan(cam.height / (2.0 * cam.fy))) if cam.height else 45.0

@@ -55,6 +55,8 @@ def build_stage(result: FitResult, path: str):
         cube.GetSizeAttr().Set(2.0)
         cube.AddScaleOp().Set(gf.Vec3d(*(float(v) for v in half)))
         cube.GetDisplayColorAttr().Set([gf.Vec3f(*(v / 255.0 for v in rgba[:3]))])
+    if result.frame == "world":  # a room's result: no single camera to place
+        return stage
     cam = result.camera
     pose = camera_pose_world(result)
     camera = usd_geom.Camera.Define(stage, "/World/input_camera")

@@ -113,3 +113,23 @@ def test_a_folder_of_rooms_runs_on_workers_and_resumes(tmp_path):
     assert "0 done, 2 skipped" in again.output
     other = run("fit", rooms, "-o", out, "--voxel", "0.12", "--glb")  # other settings: fitted again
     assert "2 done, 0 skipped" in other.output
+
+
+def test_a_bare_scan_opens_in_the_viewer_and_the_simulators(tmp_path):
+    pytest.importorskip("plotly")
+    mujoco = pytest.importorskip("mujoco")
+    src = tmp_path / "room.npy"
+    np.save(src, scanned_room().astype(np.float32))
+    out = tmp_path / "room.json"
+    r = run("fit", src, "-o", out, "--voxel", "0.1", "--html", "--mjcf", "--urdf", "--usd", "-q")
+    assert r.exit_code == 0, r.output
+    page = (tmp_path / "room.html").read_text()
+    assert "a room, in its own frame" in page and "points (" in page
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "room_mjcf.xml"))
+    d = json.loads(out.read_text())
+    assert model.ngeom == len(d["cuboids"]) and model.ncam == 0
+    floor = next(i for i, c in enumerate(d["cuboids"]) if c["kind"] == "floor")
+    # the MJCF is the levelled world: the floor's top lies at the input's z = 0 (this room is z up)
+    geom = model.geom(f"floor_{floor:02d}")
+    assert abs(geom.pos[2] + geom.size.min()) < 0.05
+    assert (tmp_path / "room.urdf").is_file() and (tmp_path / "room.usda").is_file()
