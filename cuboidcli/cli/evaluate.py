@@ -12,6 +12,7 @@ from rich.progress import TimeRemainingColumn
 from rich.table import Table
 
 from cuboidcli.api import SAMPLERS, SOLVERS
+from cuboidcli.cli import evaluate_scene as rooms
 from cuboidcli.cli.common import console, fail, out, progress_bar, user_errors
 from cuboidcli.cli.options import config_option, device_option, fast_option, fit_config, override_option
 from cuboidcli.cli.scale_options import (
@@ -95,13 +96,7 @@ def gt_table(report) -> Table | None:
     keys = [k for k in report.runs[0] if k.startswith(("recall_iou", "precision_iou"))]
     if not keys:
         return None
-    names = {"recall_iou": "recall@", "precision_iou": "precision@", "_pct": " %"}
-    cols = []
-    for k in keys:
-        header = k
-        for a, b in names.items():
-            header = header.replace(a, b)
-        cols.append((k, header, 1))
+    cols = [(k, k.replace("_iou", "@").replace("_pct", " %"), 1) for k in keys]  # recall@0.25 %
     return _table(report, f"ground-truth cuboids ({report.runs[0]['frames_with_gt']} frames), 3D IoU", cols)
 
 
@@ -203,13 +198,13 @@ def _running(ev) -> str:
 def evaluate(
     data: Path = typer.Argument(
         ...,
-        help="Dataset folder: NYU Depth v2 (nyu_depth_v2_labeled.mat + splits.mat) or the generic "
-        "layout (depth/, cameras.json, optional cuboids/).",
+        help="Dataset folder: NYU Depth v2 (nyu_depth_v2_labeled.mat + splits.mat), the generic layout "
+        "(depth/, cameras.json, optional cuboids/) or room scans (scene_*/gt.json: cuboids synth --views).",
     ),
     split: str = typer.Option(
         None, "--split", help="test | train | val (NYU default: test; a folder: per its splits.json)."
     ),
-    limit: int = typer.Option(None, "--limit", help="Evaluate only the first N frames."),
+    limit: int = typer.Option(None, "--limit", help="Evaluate only the first N frames (room scans: rooms)."),
     frames: str = typer.Option(None, "--frames", help="Comma-separated frame names, e.g. nyu_0001,nyu_0002."),
     runs: int = typer.Option(1, "--runs", help="Repeat with seeds SEED..SEED+R-1; report mean ± std."),
     workers: int = workers_option(),
@@ -260,14 +255,21 @@ def evaluate(
     align: str = override_option("align", of=PRESET),
     seed: int = config_option("seed", more="With --runs: the first run's."),
     device: str = device_option(),
+    visibility: str = rooms.visibility_option(),
+    bare: bool = rooms.bare_option(),
+    baseline: bool = rooms.baseline_option(),
 ) -> None:
     """Fit every frame and report the paper's metrics: time, |M|, coverage, OA-L2 distances, AUC.
 
     Also the parsimony curve (AUC and coverage of the first k cuboids), the cuboids' axis angles to
     gravity and the room's axes, the support of their visible faces, and, where the dataset has them,
     object recall and precision (instance images) and the gravity error (known gravity) (docs/evaluate.md).
+    Room scans (DATA/scene_*/gt.json, from cuboids synth --views N): each room is fitted whole and scored
+    in its world frame (--visibility, --bare; --baseline adds Open3D planes + clusters; -o: scenes.json).
     """
     options = dict(locals())  # the parameters named after FitConfig fields set them over the presets'
+    if rooms.is_room_run(data, options):  # DATA holds room scans, or a room-only option was given
+        return rooms.evaluate_rooms(data, options)
     from cuboidcli.evaluation.outputs import write_outputs
     from cuboidcli.evaluation.runner import EvalSettings, load_frames
     from cuboidcli.evaluation.runner import evaluate as run
@@ -340,15 +342,8 @@ def evaluate(
                 fail(str(e))
         label = _method_label(config, applied, fits) + (" from RGB" if rgb else "")
         out.print(results_table(report, label))
-        tables = (
-            gt_table(report),
-            objects_table(report),
-            shape_table(report),
-            gravity_table(report),
-            parsimony_table(report),
-        )
-        for table in tables:
-            if table is not None:
+        for make in (gt_table, objects_table, shape_table, gravity_table, parsimony_table):
+            if (table := make(report)) is not None:
                 out.print(table)
         empty = sum(r.get("frames_without_cuboids", 0) for r in report.runs)
         if empty:

@@ -263,7 +263,7 @@ def fit(
         show_default="estimated: the room's axis nearest the cameras' up, y for glTF, z otherwise",
     ),
     voxel: float = typer.Option(
-        None, "--voxel", help="A room: side of the voxels whose means are fitted (m).", show_default="0.05"
+        None, "--voxel", help="A room: side of the voxels whose means are fitted (m).", show_default="0.035"
     ),
     workers: int = workers_option(),
     ray: bool = ray_option(),

@@ -11,13 +11,46 @@ from rich.progress import TimeElapsedColumn, TimeRemainingColumn
 
 from cuboidcli.cli.common import console, fail, progress_bar, user_errors
 
+#: Folder of room scan i under OUT_DIR (``cuboids evaluate`` finds the scans by this prefix).
+SCENE_NAME = "scene_{:04d}"
+
+
+def _write_scan(root: str, seed: int, index: int, views: int, camera, options) -> None:
+    """Generate room scan ``index`` from the entropy (seed, index) and write it to ``root``/scene_NNNN.
+    At module level so that worker processes can run it."""
+    from cuboidcli.synth.scan import generate_room_scan, write_room_scan
+
+    write_room_scan(
+        Path(root) / SCENE_NAME.format(index), generate_room_scan([seed, index], views, camera, options)
+    )
+
+
+def _write_scans(out_dir: Path, count: int, seed: int, views: int, camera, options, workers: int, done):
+    """Write ``count`` room scans, in ``workers`` processes when > 1 (the same files); ``done(n)`` after
+    each."""
+    if workers == 1:
+        for i in range(count):
+            _write_scan(str(out_dir), seed, i, views, camera, options)
+            done(i + 1)
+        return
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    from multiprocessing import get_context
+
+    # one ray-casting thread per process: the processes already fill the cores
+    single = replace(options, threads=1)
+    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
+        jobs = [pool.submit(_write_scan, str(out_dir), seed, i, views, camera, single) for i in range(count)]
+        for n, job in enumerate(as_completed(jobs), 1):
+            job.result()
+            done(n)
+
 
 def synth(
     out_dir: Path = typer.Argument(
         ..., help="Dataset folder to write (created if missing; frames with the same names are replaced)."
     ),
-    count: int = typer.Option(100, "--count", "-n", help="Number of frames."),
-    seed: int = typer.Option(0, "--seed", help="Dataset seed; frame i is generated from (seed, i)."),
+    count: int = typer.Option(100, "--count", "-n", help="Number of frames (with --views: of rooms)."),
+    seed: int = typer.Option(0, "--seed", help="Dataset seed; frame (room) i is generated from (seed, i)."),
     preset: str = typer.Option("nyu", "--preset", help="Camera intrinsics preset: nyu, tum or scannet."),
     width: int | None = typer.Option(
         None,
@@ -35,11 +68,22 @@ def synth(
         False, "--clean", help="Exact depth: no noise, quantisation or holes (range limits stay)."
     ),
     shadows: bool = typer.Option(True, "--shadows/--no-shadows", help="Cast shadows in the RGB images."),
+    views: int | None = typer.Option(
+        None,
+        "--views",
+        help="Write COUNT whole-room scans of this many views each instead of single frames: "
+        "OUT_DIR/scene_0000/ etc., posed RGB-D sequences with world-frame ground truth (cuboids evaluate).",
+    ),
 ) -> None:
     """Write COUNT synthetic indoor RGB-D frames with ground-truth cuboids into OUT_DIR.
 
     Layout: cameras.json, depth/<name>.png (uint16 mm, 0 = hole), rgb/<name>.png, instances/<name>.png,
     cuboids/<name>.json ("cuboids/1"), splits.json (index % 10: 0-7 train, 8 val, 9 test), synth.json.
+
+    With --views N: COUNT rooms, each scanned from N poses on a loop through the room, in folders
+    scene_0000/ ... (room i from the seed (SEED, i): the room of frame i without --views). Each is a plain
+    sequence (cameras.json, depth/, color/, pose/ 4x4 camera-to-world, instances/) that cuboids fit takes,
+    with gt.json (world-frame ground truth, z up) and truth_points.npz (evaluation points).
     """
     from cuboidcli.camera import PRESETS, Camera
 
@@ -47,6 +91,8 @@ def synth(
         fail(f"--count {count}: give at least 1 frame")
     if workers < 1:
         fail(f"--workers {workers}: give at least 1 process")
+    if views is not None and views < 1:
+        fail(f"--views {views}: give at least 1 view per room")
     if preset not in PRESETS:
         fail(f"--preset {preset!r}: choose one of {', '.join(PRESETS)}")
     if out_dir.exists() and not out_dir.is_dir():
@@ -64,6 +110,24 @@ def synth(
     options = SceneOptions(sensor=replace(sensor, inpaint=inpaint), shadows=shadows)
     start = time.perf_counter()
     progress = progress_bar("synth", TimeElapsedColumn(), "eta", TimeRemainingColumn(), transient=True)
+    if views is not None:
+        with user_errors(), progress as bar:
+            task = bar.add_task("rooms", total=count)
+            try:
+                _write_scans(
+                    out_dir, count, seed, views, camera, options, workers,
+                    done=lambda n: bar.update(task, completed=n),
+                )  # fmt: skip
+            except (OSError, ValueError) as e:
+                fail(f"cannot write the room scans to {out_dir}: {e}")
+        elapsed = time.perf_counter() - start
+        console.print(
+            f"wrote {count} room scan{'s' if count > 1 else ''} ({views} view{'s' if views > 1 else ''} "
+            f"each, {camera.width}x{camera.height}) to {out_dir}/scene_* in {elapsed:.1f} s "
+            f"({elapsed / count:.2f} s/room)",
+            highlight=False,
+        )
+        return
     with user_errors(), progress as bar:
         task = bar.add_task("frames", total=count)
         try:

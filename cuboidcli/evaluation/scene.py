@@ -99,12 +99,13 @@ def slab_plane(box: Cuboid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return box.rotation[:, thin], box.rotation[:, others], box.half_size[others]
 
 
-def _clip(poly: np.ndarray, axis: int, limit: float) -> np.ndarray:
-    """The part of a convex polygon (K, 2), cyclic order, with x[axis] <= limit (Sutherland-Hodgman)."""
+def _clip(poly: np.ndarray, axis: int, sign: float, limit: float) -> np.ndarray:
+    """The part of a convex polygon (K, 2), cyclic order, with sign * x[axis] <= limit (one step of
+    Sutherland-Hodgman); the result keeps the cyclic order."""
     out = []
     for i in range(len(poly)):
         a, b = poly[i], poly[(i + 1) % len(poly)]
-        da, db = a[axis] - limit, b[axis] - limit
+        da, db = sign * a[axis] - limit, sign * b[axis] - limit
         if da <= 0.0:
             out.append(a)
         if da * db < 0.0:  # the edge crosses the line: keep the crossing point
@@ -142,10 +143,8 @@ def planar_iou(
     poly = (corners - gt.center) @ axes_g  # (4, 2) in gt's plane, gt's rectangle is centred at 0
     inter = poly
     for axis in (0, 1):
-        for sign in (1.0, -1.0):  # clip sign * x <= half: mirror, clip at +half, mirror back
-            if len(inter):
-                inter = _clip(inter * [1.0, 1.0] if sign > 0 else -inter, axis, half_g[axis])
-                inter = inter if sign > 0 else -inter
+        for sign in (1.0, -1.0):
+            inter = _clip(inter, axis, sign, float(half_g[axis]))
     overlap = _area(inter)
     union = _area(poly) + 4.0 * float(half_g[0] * half_g[1]) - overlap
     return 0.0 if union <= 0.0 else min(1.0, overlap / union)

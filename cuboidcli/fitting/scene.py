@@ -27,7 +27,7 @@ from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import FitInfo, PreparedPoints, ProgressFn, fit_points
 from cuboidcli.fitting.room_backend import RoomBackend, warm_up_room
 from cuboidcli.fitting.winner import Alignment, cuboid_kind
-from cuboidcli.geometry.cloud import RoomUp, estimate_normals, room_up, voxel_groups
+from cuboidcli.geometry.cloud import RoomUp, estimate_normals, free_side_normals, room_up, voxel_groups
 from cuboidcli.geometry.room import VISIBILITY, RoomPoints, room_params, room_values
 from cuboidcli.sampling import Sampler
 from cuboidcli.sampling.space import SpaceCells
@@ -42,10 +42,14 @@ class SceneConfig:
     """How a room is turned into fitting points and scored; the estimator's own settings stay in
     :class:`FitConfig`."""
 
-    voxel_m: float = 0.05
+    voxel_m: float = 0.035
     """Side of the voxels whose mean points are the fitting points (m); grown when a room gives more than
-    ``fit_points``."""
-    fit_points: int = 20000
+    ``fit_points``.
+
+    On synthetic room scans (3 rooms, 8 views each) 3.5 cm voxels and up to 40,000 points recall twice
+    the furniture boxes of 5 cm and 20,000 (IoU >= 0.25: 28.6 against 14.3 %; AUC@5 88.1 against 84.4 %)
+    in twice the time (9.3 against 4.3 s a room); 3 cm and 50,000 add little (32.1 %, 14.9 s)."""
+    fit_points: int = 40000
     """At most this many fitting points (the voxel grows until the room gives no more)."""
     max_cuboids: int = 40
     """Upper bound on the number of cuboids of a room."""
@@ -214,6 +218,15 @@ def virtual_viewpoints(
     flip = np.einsum("ij,ij->i", n, inside[None] - points) < 0
     n = np.where(flip[:, None], -n, n)
     return points + distance_m * n
+
+
+def free_side_viewpoints(
+    points: np.ndarray, normals: np.ndarray, inside: np.ndarray, distance_m: float, cell_m: float
+) -> np.ndarray:
+    """(N, 3) a viewpoint per point of a bare cloud, ``distance_m`` out of its surface on the side it was
+    seen from (:func:`cuboidcli.geometry.cloud.free_side_normals`: where rays cross empty space, else
+    towards ``inside``)."""
+    return points + distance_m * free_side_normals(points, normals, inside, cell_m)
 
 
 def _inside_point(points: np.ndarray, viewpoints: np.ndarray | None) -> np.ndarray:

@@ -9,6 +9,9 @@ import typer
 from typer.testing import CliRunner
 
 from cuboidcli.cli import synth as synth_cli
+from cuboidcli.io.sequence import read_sequence
+from cuboidcli.scene import is_scene_input
+from cuboidcli.synth.scan import read_scan_truth
 
 
 @pytest.fixture(scope="module")
@@ -73,6 +76,7 @@ def test_synth_depth_flags(app, tmp_path):
         (["--preset", "kinect9"], "--preset 'kinect9'"),
         (["--width", "8"], "too small"),
         (["--workers", "0"], "--workers 0"),
+        (["--views", "0"], "--views 0"),
     ],
 )
 def test_synth_reports_bad_options_in_one_line(app, tmp_path, args, message):
@@ -87,3 +91,31 @@ def test_synth_refuses_a_file_as_output(app, tmp_path):
     target.write_text("x")
     result = _run(app, target, "-n", 1)
     assert result.exit_code == 2 and "is a file" in result.output
+
+
+def test_synth_views_writes_room_scans(app, tmp_path):
+    out = tmp_path / "rooms"
+    result = _run(app, out, "-n", 2, "--views", 3, "--seed", 7, "--width", 160)
+    assert result.exit_code == 0, result.output
+    assert "wrote 2 room scans (3 views each, 160x120)" in result.output
+    assert sorted(p.name for p in out.iterdir()) == ["scene_0000", "scene_0001"]  # no frame dataset beside
+    for i, scene in enumerate(sorted(out.iterdir())):
+        names = [f"{k:06d}" for k in range(3)]
+        for folder, suffix in (("depth", ".png"), ("color", ".png"), ("instances", ".png"), ("pose", ".txt")):
+            assert sorted(p.name for p in (scene / folder).iterdir()) == [n + suffix for n in names]
+        depth = cv2.imread(str(scene / "depth" / "000002.png"), cv2.IMREAD_UNCHANGED)
+        assert depth.shape == (120, 160) and depth.dtype == np.uint16 and (depth > 0).mean() > 0.5
+        pose = np.loadtxt(scene / "pose" / "000001.txt")
+        assert pose.shape == (4, 4) and pose[3] == pytest.approx([0, 0, 0, 1])
+        assert json.loads((scene / "cameras.json").read_text())["width"] == 160
+        gt_doc = json.loads((scene / "gt.json").read_text())
+        assert gt_doc["frame"] == "world" and gt_doc["settings"]["seed"] == [7, i]
+        assert gt_doc["settings"]["views"] == 3
+        gt, points, instance = read_scan_truth(scene)
+        kinds = {c.kind for c in gt}
+        assert {"floor", "wall", "object"} <= kinds and len(points) == len(instance) > 1000
+        assert set(np.unique(instance)) <= {c.extras["object"] for c in gt}
+        # a posed sequence that cuboids fit reads as a room
+        assert is_scene_input(scene) and len(read_sequence(scene).frames) == 3
+    # the two rooms differ
+    assert (out / "scene_0000" / "gt.json").read_bytes() != (out / "scene_0001" / "gt.json").read_bytes()

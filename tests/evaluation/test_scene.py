@@ -8,12 +8,25 @@ import numpy as np
 import pytest
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.scene import aggregate_scenes, point_box_distance, scene_metrics, surface_distances
+from cuboidcli.evaluation.iou import box_iou
+from cuboidcli.evaluation.scene import (
+    aggregate_scenes,
+    planar_iou,
+    point_box_distance,
+    scene_metrics,
+    slab_plane,
+    surface_distances,
+)
 
 
 def rot_z(angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def rot_x(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def face_grid(box: Cuboid, faces, spacing: float = 0.05) -> np.ndarray:
@@ -174,3 +187,83 @@ def test_aggregate_pools_ratios_and_averages_the_rest(room):
     assert agg["auc20cm_pct"] == pytest.approx((full["auc20cm_pct"] + half["auc20cm_pct"] + 0.0) / 3)
     assert math.isinf(agg["mean_distance_cm"])
     assert aggregate_scenes([]) == {"scenes": 0}
+
+
+# The shell is matched in its plane. The ground-truth wall of the room fixture: 4 m x 2.5 m, 5 cm thick,
+# its inner face on y = 0; a fitted wall is a 5 mm slab on that face (y in [0, 5 mm]).
+GT_WALL = Cuboid([2.0, -0.025, 1.25], [2.0, 0.025, 1.25], np.eye(3), kind="wall")
+
+
+def fitted_wall(shift_x: float = 0.0, tilt_deg: float = 0.0, offset_y: float = 0.0) -> Cuboid:
+    """A 5 mm wall slab on GT_WALL's face, moved along the wall, tilted about the wall's horizontal axis
+    (its normal leans away from y) and moved off the face."""
+    return Cuboid(
+        [2.0 + shift_x, 0.0025 + offset_y, 1.25],
+        [2.0, 0.0025, 1.25],
+        rot_x(math.radians(tilt_deg)),
+        kind="wall",
+    )
+
+
+def test_slab_plane_is_the_thin_axis():
+    normal, axes, half = slab_plane(Cuboid([0.0, 0.0, 0.0], [2.0, 0.5, 0.01], rot_z(0.3)))
+    assert normal == pytest.approx([0.0, 0.0, 1.0])
+    assert axes.T == pytest.approx(rot_z(0.3)[:, :2].T) and half == pytest.approx([2.0, 0.5])
+
+
+def test_a_thin_slab_on_the_surface_of_a_thick_one():
+    # in 3D the slabs only touch: IoU 0 although the wall was found exactly
+    assert box_iou(fitted_wall(), GT_WALL) == pytest.approx(0.0, abs=1e-9)
+    assert planar_iou(fitted_wall(), GT_WALL) == pytest.approx(1.0)
+    # half its length (2 m) along the wall: overlap 2 of 4 m, IoU 2 / (4 + 4 - 2)
+    assert planar_iou(fitted_wall(shift_x=2.0), GT_WALL) == pytest.approx(1.0 / 3.0)
+    assert planar_iou(fitted_wall(shift_x=-3.0), GT_WALL) == pytest.approx(1.0 / 7.0)
+    assert planar_iou(fitted_wall(shift_x=4.5), GT_WALL) == 0.0
+
+
+def test_slabs_must_share_a_plane():
+    assert planar_iou(fitted_wall(tilt_deg=30.0), GT_WALL) == 0.0
+    assert planar_iou(fitted_wall(tilt_deg=-12.0), GT_WALL) == 0.0
+    # within 10 degrees the tilted rectangle is seen in the wall's plane: its height shrinks by cos(8 deg)
+    assert planar_iou(fitted_wall(tilt_deg=8.0), GT_WALL) == pytest.approx(math.cos(math.radians(8.0)))
+    # the fitted slab's centre is 2.75 cm from the gt's mid-plane; another 7 cm is still the same wall
+    assert planar_iou(fitted_wall(offset_y=0.07), GT_WALL) == pytest.approx(1.0)
+    assert planar_iou(fitted_wall(offset_y=0.08), GT_WALL) == 0.0  # 10.75 cm: a wall in front of it
+    assert planar_iou(fitted_wall(offset_y=-0.14), GT_WALL) == 0.0  # 11.25 cm behind it
+    # a normal pointing the other way is the same plane
+    flipped = fitted_wall()
+    flipped.rotation = rot_z(math.pi)
+    assert planar_iou(flipped, GT_WALL) == pytest.approx(1.0)
+
+
+def test_planar_iou_of_a_turned_rectangle():
+    floor = Cuboid([0.0, 0.0, -0.025], [1.0, 1.0, 0.025], np.eye(3), kind="floor")
+    # the same square turned 45 degrees in the plane: the octagon 8 (sqrt 2 - 1) over the union: 1 / sqrt 2
+    turned = Cuboid([0.0, 0.0, 0.002], [1.0, 1.0, 0.002], rot_z(math.pi / 4), kind="floor")
+    assert planar_iou(turned, floor) == pytest.approx(1.0 / math.sqrt(2.0))
+    # the box's axes in another order (its thin axis is its x): the same slab
+    stood = Cuboid([0.5, 0.0, 0.002], [0.002, 1.0, 0.5], np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]]))
+    assert planar_iou(stood, floor) == pytest.approx(0.5)
+
+
+def test_shell_recall_is_planar(room):
+    gt, points, ids = room
+    # the three shell slabs fitted as 5 mm slabs on their inner faces; the wall on y = 0 half off its end
+    fitted = [
+        Cuboid([2.0, 1.5, 0.0025], [2.0, 1.5, 0.0025], np.eye(3), kind="floor"),
+        fitted_wall(shift_x=2.0),
+        Cuboid([0.0025, 1.5, 1.25], [0.0025, 1.5, 1.25], np.eye(3), kind="wall"),
+    ]
+    m = scene_metrics(fitted + gt[3:], gt, points, ids)
+    assert m["shell_box_recall_iou0.25_pct"] == 100.0 and m["shell_matches_iou0.25"] == 3
+    assert m["shell_box_recall_iou0.5_pct"] == pytest.approx(200.0 / 3.0)
+    assert m["shell_box_precision_iou0.5_pct"] == pytest.approx(200.0 / 3.0)
+    assert m["object_box_recall_iou0.5_pct"] == 100.0  # objects keep the 3D IoU
+    # an object box is still matched in 3D: the cabinet as a 5 mm slab on its top finds nothing
+    top = Cuboid(gt[3].center + [0.0, 0.0, 0.4475], [0.4, 0.25, 0.0025], np.eye(3))
+    m = scene_metrics(gt[:3] + [top, gt[4]], gt, points, ids)
+    assert m["object_box_recall_iou0.25_pct"] == 50.0
+    # the floor tilted by 30 degrees is no floor
+    tilted = Cuboid([2.0, 1.5, 0.0025], [2.0, 1.5, 0.0025], rot_x(math.radians(30.0)), kind="floor")
+    m = scene_metrics([tilted, *gt[1:]], gt, points, ids)
+    assert m["shell_box_recall_iou0.25_pct"] == pytest.approx(200.0 / 3.0)
