@@ -60,8 +60,8 @@ class SceneConfig:
     up: tuple[float, float, float] | None = None
     """The up direction in the input's frame; None = estimated (the Manhattan axis nearest the hint)."""
     virtual_view_m: float = 0.5
-    """A bare cloud's points are taken as seen from this far out of their surface, along the normal turned
-    towards the inside of the room (m)."""
+    """A bare cloud's points are taken as seen from this far out of their surface, on the side rays cross
+    empty space (else towards the inside of the room) (m)."""
 
     def __post_init__(self) -> None:
         if self.visibility not in VISIBILITY_CHOICES:
@@ -168,7 +168,7 @@ def fit_scene(
             # each voxel keeps the camera of one of its points (a camera that really saw that patch)
             views = np.asarray(viewpoints, dtype=np.float64)[first]
         else:
-            views = virtual_viewpoints(means, normals, viewpoint, scene.virtual_view_m)
+            views = free_side_viewpoints(means, normals, viewpoint, scene.virtual_view_m, 3.0 * voxel)
     room = RoomPoints.build(means, views, visibility)
     timing["prepare"] += time.perf_counter() - t
 
@@ -204,20 +204,6 @@ def fit_scene(
         fit_points=room.points, fit_labels=fit_labels, point_labels=point_labels, timing_s=info.timing_s,
     )  # fmt: skip
     return cuboids, scene_info
-
-
-def virtual_viewpoints(
-    points: np.ndarray, normals: np.ndarray, inside: np.ndarray, distance_m: float
-) -> np.ndarray:
-    """(N, 3) a viewpoint per point of a bare cloud: ``distance_m`` out of its surface along its normal
-    (N, 3), turned towards ``inside`` (3,), a point inside the room. The room's shell is then seen from
-    the room, as a scanner saw it, and a box around the room's interior holds the viewpoints of every
-    wall; a face of furniture turned away from ``inside`` is taken as seen from within the furniture,
-    which costs its box those points."""
-    n = np.asarray(normals, dtype=np.float64)
-    flip = np.einsum("ij,ij->i", n, inside[None] - points) < 0
-    n = np.where(flip[:, None], -n, n)
-    return points + distance_m * n
 
 
 def free_side_viewpoints(

@@ -12,7 +12,8 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.iou import box_iou
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.scene import SceneConfig, fit_scene, fitting_voxels, virtual_viewpoints
+from cuboidcli.fitting.scene import SceneConfig, fit_scene, fitting_voxels
+from cuboidcli.geometry.cloud import free_side_normals
 from tests.conftest import fit_named, simple_room
 
 CABINET = Cuboid(np.array([0.45, 2.0, 0.5]), np.array([0.3, 0.6, 0.5]), np.eye(3))
@@ -111,11 +112,29 @@ def test_fitting_voxels_grow_until_the_points_fit():
     assert np.all(inverse[first] == np.arange(len(means)))
 
 
-def test_virtual_viewpoints_face_the_inside_of_the_room():
-    pts = np.array([[0.0, 1.0, 1.0], [4.0, 1.0, 1.0]])
-    normals = np.array([[1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
-    v = virtual_viewpoints(pts, normals, np.array([2.0, 1.0, 1.0]), 0.3)
-    assert np.allclose(v, [[0.3, 1.0, 1.0], [3.7, 1.0, 1.0]])
+def test_a_surface_is_seen_from_the_side_where_rays_cross_empty_space():
+    """A crate on the floor has a face turned away from the room's middle, yet rays from that face cross
+    the room while rays into the crate meet its other faces: its normal points out of the crate. Walls face
+    the room (behind them nothing is known)."""
+    rng = np.random.default_rng(0)
+    room = scanned_room()
+    crate = Cuboid(np.array([3.0, 1.5, 0.3]), np.array([0.3, 0.3, 0.3]), np.eye(3))
+    u = rng.uniform(-1, 1, (4000, 3))
+    k = rng.integers(0, 3, 4000)
+    u[np.arange(4000), k] = np.sign(u[np.arange(4000), k])
+    box = crate.center + u * crate.half_size
+    box = box[box[:, 2] > 0.01]  # not its bottom
+    pts = np.concatenate([room, box])
+    normals = np.zeros_like(pts)
+    inside = np.array([2.0, 1.5, 1.25])
+    # the crate's face y = 1.2 looks at the wall y = 0, away from the room's middle
+    face = (np.abs(pts[:, 1] - 1.2) < 0.005) & (np.abs(pts[:, 0] - 3.0) < 0.25) & (pts[:, 2] > 0.05)
+    wall = (pts[:, 0] < 0.005) & (pts[:, 2] > 1.2)
+    normals[face] = [0.0, 1.0, 0.0]  # signs as PCA may give them: into the crate
+    normals[wall] = [-1.0, 0.0, 0.0]
+    out = free_side_normals(pts, normals, inside, 0.1)
+    assert np.mean(out[face, 1] < 0) > 0.8  # turned out of the crate, towards y = 0
+    assert np.all(out[wall, 0] > 0)  # the wall faces the room
 
 
 def test_the_learned_sampler_is_refused_for_a_room(parts):
