@@ -46,6 +46,32 @@ rc=$?
 set -e
 cat h.out
 test "$rc" = 2 && grep -q "cuboids\[hf\]" h.out && test ! -e h.json
+# A whole room: a point cloud of a floor and four walls, written as a PLY with Open3D, fitted in its frame.
+venv/bin/python - <<'PY'
+import numpy as np
+import open3d as o3d
+
+rng = np.random.default_rng(0)
+def plane(o, e1, e2, n):
+    uv = rng.uniform(0, 1, (n, 2))
+    return np.asarray(o) + uv[:, :1] * np.asarray(e1) + uv[:, 1:] * np.asarray(e2)
+pts = np.concatenate([
+    plane([0, 0, 0], [4, 0, 0], [0, 3, 0], 8000), plane([0, 0, 0], [4, 0, 0], [0, 0, 2.5], 4000),
+    plane([0, 3, 0], [4, 0, 0], [0, 0, 2.5], 4000), plane([0, 0, 0], [0, 3, 0], [0, 0, 2.5], 3000),
+    plane([4, 0, 0], [0, 3, 0], [0, 0, 2.5], 3000),
+])
+o3d.io.write_point_cloud("room.ply", o3d.geometry.PointCloud(o3d.utility.Vector3dVector(pts)))
+PY
+run venv/bin/cuboids fit room.ply --voxel 0.1 -o room.json --glb -q
+test -s room.glb
+venv/bin/python - <<'PY'
+import json
+
+d = json.load(open("room.json"))
+kinds = [c["kind"] for c in d["cuboids"]]
+assert d["frame"] == "world" and "floor" in kinds and kinds.count("wall") >= 3, kinds
+print(f"room.json: {len(kinds)} cuboids in the world frame: {', '.join(kinds)}")
+PY
 venv/bin/python - <<'PY'
 import json
 
