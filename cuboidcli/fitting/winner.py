@@ -35,6 +35,9 @@ ROOM_KEEP = 0.5
 #: the ceiling, while a table top has the floor under it and a cabinet front the wall behind it.
 ROOM_SHARE = 0.05
 ROOM_MARGIN_M = 0.15
+#: Seen from inside a room, an upright slab with more than this share of all the room's points beyond it
+#: stands in the room (a monitor, a cabinet's side), whatever little is seen right behind it.
+ROOM_WIDE_SHARE = 0.25
 #: Manhattan axes are preferred over a free yaw unless the free yaw gains this share more.
 MANHATTAN_SLACK = 0.02
 #: A slab turned to the tightest rectangle around its points (:func:`square_slab`) is kept when it gains
@@ -410,7 +413,9 @@ def beyond_share(
     along its normal. Seen from a ``viewpoint`` inside a room, only the points behind an upright slab
     itself (within its rectangle, grown by the margin; ``up`` (3,) says which slabs are upright) count: a
     whole room holds more beyond any one wall's plane than a frame's field of view does (a corridor seen
-    through another wall's door), while a floor still has nothing anywhere below it."""
+    through another wall's door), while a floor still has nothing anywhere below it; an upright slab with
+    more than :data:`ROOM_WIDE_SHARE` of all the points beyond it gets that share (it stands in the room:
+    the space right behind it is hidden by it, not empty)."""
     if points.shape[0] == 0:
         return 0.0
     n = rotation[:, k]
@@ -419,6 +424,9 @@ def beyond_share(
     far = float(n @ center) + float(half[k])
     beyond = points @ n > far + ROOM_MARGIN_M
     if viewpoint is not None and up is not None and abs(float(n @ up)) < 0.5:
+        wide = float(np.mean(beyond))
+        if wide > ROOM_WIDE_SHARE:  # a quarter of the room behind it: something standing in the room
+            return wide
         local = (points - center) @ rotation
         for j in range(3):
             if j != k:

@@ -185,3 +185,21 @@ def test_the_fused_surface_refinement_equals_the_torch_one():
         assert torch.allclose(x, y, atol=1e-6)
     # and it moves towards the true box
     assert np.abs(fused[0].numpy() - [1.0, 2.0, 0.5]).max() < np.abs(start[0].numpy() - [1.0, 2.0, 0.5]).max()
+
+
+def test_seen_from_inside_a_room_a_wall_is_a_wall_and_a_screen_is_not():
+    """An upright slab counts only what lies right behind it (a corridor seen through a door, beyond the
+    plane of the wall beside the door but not behind that wall, is no reason to doubt it), unless a quarter
+    of the room lies beyond its plane: then it stands in the room (a screen whose back hides the wall
+    behind it)."""
+    from cuboidcli.fitting.winner import cuboid_kind
+
+    room = scanned_room()
+    down, inside = np.array([0.0, 0.0, -1.0]), np.array([2.0, 1.5, 1.25])
+    corridor = np.random.default_rng(1).uniform([-3.0, -3.0, 0.0], [-0.5, -0.5, 2.5], (4000, 3))
+    pts = np.concatenate([room, corridor])
+    wall = Cuboid(np.array([2.0, -0.005, 1.25]), np.array([2.0, 0.005, 1.25]), np.eye(3))
+    assert cuboid_kind(pts, wall, down, inside) == "wall"
+    screen = Cuboid(np.array([2.5, 1.5, 1.0]), np.array([0.01, 0.3, 0.2]), np.eye(3))
+    hidden = (pts[:, 0] > 2.5) & (np.abs(pts[:, 1] - 1.5) < 0.45) & (np.abs(pts[:, 2] - 1.0) < 0.35)
+    assert cuboid_kind(pts[~hidden], screen, down, inside) == "object"
