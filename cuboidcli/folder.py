@@ -39,19 +39,26 @@ class FolderJob:
 
     def outputs(self, out_json: Path) -> list[Path]:
         """The files a complete frame has, the JSON last (see :meth:`cuboidcli.api.Result.save`)."""
-        stem = out_json.with_name(out_json.name.removesuffix(".json"))
-        extra = []
-        if self.glb:
-            extra.append(Path(f"{stem}.glb"))
-        if self.ply:
-            extra += [Path(f"{stem}_points.ply"), Path(f"{stem}_cuboids.ply")]
-        if self.overlay:
-            extra += [Path(f"{stem}_{k}.png") for k in ("overlay", "labels", "labels_color", "panel")]
-        if self.scenes:
-            from cuboidcli.export import scene_path
+        return output_files(out_json, glb=self.glb, ply=self.ply, overlay=self.overlay, scenes=self.scenes)
 
-            extra += [scene_path(stem, kind) for kind in self.scenes]
-        return [*extra, out_json]
+
+def output_files(
+    out_json: Path, *, glb: bool, ply: bool, overlay: bool, scenes: tuple[str, ...]
+) -> list[Path]:
+    """The files beside ``out_json`` that ``cuboids fit`` writes for these outputs, the JSON last."""
+    stem = out_json.with_name(out_json.name.removesuffix(".json"))
+    extra = []
+    if glb:
+        extra.append(Path(f"{stem}.glb"))
+    if ply:
+        extra += [Path(f"{stem}_points.ply"), Path(f"{stem}_cuboids.ply")]
+    if overlay:
+        extra += [Path(f"{stem}_{k}.png") for k in ("overlay", "labels", "labels_color", "panel")]
+    if scenes:
+        from cuboidcli.export import scene_path
+
+        extra += [scene_path(stem, kind) for kind in scenes]
+    return [*extra, out_json]
 
 
 @lru_cache(maxsize=4)
@@ -62,19 +69,27 @@ def fitter_for(config: FitConfig, weights: str | None, onnx: str | None):
     return Fitter(config, weights=weights, onnx=onnx, device=config.device)
 
 
-def is_complete(out_json: Path, job: FolderJob) -> bool:
-    """The frame's outputs exist and its JSON is a valid "cuboids/1" result fitted with ``job``'s settings."""
-    from cuboidcli.frame import same_settings
+def saved_settings(out_json: Path, outputs: list[Path]) -> dict | None:
+    """The ``settings`` of a finished result: None unless every file of ``outputs`` exists and
+    ``out_json`` is a valid "cuboids/1" result with settings (a rerun fits it again then)."""
     from cuboidcli.io.result import read_result
 
-    if not all(p.is_file() for p in job.outputs(out_json)):
-        return False
+    if not all(p.is_file() for p in outputs):
+        return None
     try:
         saved = read_result(out_json)
     except (OSError, ValueError, KeyError, TypeError):
-        return False
+        return None
+    return saved.settings if isinstance(saved.settings, dict) else None
+
+
+def is_complete(out_json: Path, job: FolderJob) -> bool:
+    """The frame's outputs exist and its JSON is a valid "cuboids/1" result fitted with ``job``'s settings."""
+    from cuboidcli.frame import same_settings
+
+    saved = saved_settings(out_json, job.outputs(out_json))
     extra = {"weights": job.weights, "onnx": job.onnx}
-    return isinstance(saved.settings, dict) and same_settings(saved.settings, job.config, extra)
+    return saved is not None and same_settings(saved, job.config, extra)
 
 
 def fit_file(job: FolderJob, source: str, out_json: str) -> Outcome:

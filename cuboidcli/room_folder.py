@@ -15,6 +15,7 @@ from pathlib import Path
 
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scene import SceneConfig
+from cuboidcli.folder import fitter_for, output_files, saved_settings
 from cuboidcli.scaleout import Outcome, failed
 
 
@@ -38,15 +39,7 @@ class RoomJob:
 
     def outputs(self, out_json: Path) -> list[Path]:
         """The files a complete room has, the JSON last."""
-        stem = out_json.with_name(out_json.name.removesuffix(".json"))
-        extra = [Path(f"{stem}.glb")] if self.glb else []
-        if self.ply:
-            extra += [Path(f"{stem}_points.ply"), Path(f"{stem}_cuboids.ply")]
-        if self.scenes:
-            from cuboidcli.export import scene_path
-
-            extra += [scene_path(stem, kind) for kind in self.scenes]
-        return [*extra, out_json]
+        return output_files(out_json, glb=self.glb, ply=self.ply, overlay=False, scenes=self.scenes)
 
 
 def rooms_in(folder: Path) -> list[Path]:
@@ -63,19 +56,14 @@ def out_name(room: Path) -> str:
 def room_is_complete(out_json: Path, job: RoomJob) -> bool:
     """The room's outputs exist and its JSON was fitted with ``job``'s settings."""
     from cuboidcli.frame import same_settings
-    from cuboidcli.io.result import read_result
 
-    if not all(p.is_file() for p in job.outputs(out_json)):
+    saved = saved_settings(out_json, job.outputs(out_json))
+    if saved is None:
         return False
-    try:
-        saved = read_result(out_json)
-    except (OSError, ValueError, KeyError, TypeError):
-        return False
-    s = saved.settings if isinstance(saved.settings, dict) else {}
     want_scene = json.loads(json.dumps(job.scene.to_dict()))
     config = replace(job.config, max_cuboids=job.scene.max_cuboids)
     extra = {"weights": job.weights, "onnx": job.onnx}
-    return s.get("scene") == want_scene and same_settings(s, config, extra)
+    return saved.get("scene") == want_scene and same_settings(saved, config, extra)
 
 
 def fit_room_file(job: RoomJob, source: str, out_json: str) -> Outcome:
@@ -83,7 +71,6 @@ def fit_room_file(job: RoomJob, source: str, out_json: str) -> Outcome:
     (cuboids, fitting seconds, fitting points)."""
     import warnings
 
-    from cuboidcli.folder import fitter_for
 
     name = Path(source).name
     try:

@@ -10,7 +10,7 @@ from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
 from cuboidcli.api import Fitter
-from cuboidcli.cli.common import console, fail, out, progress_bar, user_errors
+from cuboidcli.cli.common import console, fail, out, user_errors
 from cuboidcli.cli.options import (
     DEFAULTS,
     call_with_defaults,
@@ -20,9 +20,11 @@ from cuboidcli.cli.options import (
     fit_config,
 )
 from cuboidcli.cli.scale_options import (
+    end_of_run,
     ray_address_option,
     ray_option,
     ray_target,
+    run_with_progress,
     skip_existing_option,
     workers_option,
 )
@@ -398,7 +400,7 @@ def _fit_folder(
     """Fit every depth map (``rgb``: every colour image, depth estimated) of a folder, one JSON each, on
     ``engine``; frames whose outputs exist are skipped; ends with a summary, exit 1 if any frame failed."""
     from cuboidcli.folder import fit_file, is_complete
-    from cuboidcli.scaleout import Outcome, Summary, run_tasks
+    from cuboidcli.scaleout import Outcome, Summary
 
     suffixes = IMAGE_SUFFIXES if rgb else DEPTH_SUFFIXES
     files = sorted(p for p in folder.iterdir() if p.suffix.lower() in suffixes and p.is_file())
@@ -439,47 +441,24 @@ def _fit_folder(
         )
     tasks = [(spec, str(f), str(out_dir / f"{f.stem}_cuboids.json")) for f in todo]
     said_source = False
-    with progress_bar("{task.description}", TimeElapsedColumn(), disable=quiet) as prog:
-        task = prog.add_task(f"fitting on {engine.describe()}", total=len(tasks))
 
-        def on_result(i: int, res: Outcome) -> None:
-            nonlocal said_source
-            summary.add(res)
-            for note in res.notes:
-                console.print(f"[yellow]warning:[/] {res.name}: {note}", highlight=False)
-            if res.status == "failed":
-                console.print(f"[red]failed[/] {res.name}: {res.message}", highlight=False)
-                desc = f"{res.name}: failed"
-            else:
-                n, seconds, source = res.value
-                if rgb and not said_source:
-                    console.print(f"[cyan]note:[/] {source}", highlight=False)
-                    said_source = True
-                desc = f"{res.name}: {n} cuboids, {seconds:.2f} s"
-                if stream is not None:
-                    stream.add(tasks[i][2])
-            prog.update(task, advance=1, description=desc)
+    def describe(i: int, res: Outcome) -> str:
+        nonlocal said_source
+        n, seconds, source = res.value
+        if rgb and not said_source:
+            console.print(f"[cyan]note:[/] {source}", highlight=False)
+            said_source = True
+        if stream is not None:
+            stream.add(tasks[i][2])
+        return f"{res.name}: {n} cuboids, {seconds:.2f} s"
 
-        if tasks:
-            try:
-                run_tasks(
-                    fit_file,
-                    tasks,
-                    [f.name for f in todo],
-                    workers=engine.workers,
-                    ray=engine.ray,
-                    on_result=on_result,
-                )
-            except ValueError as e:  # the engine could not start (Ray missing, a bad address)
-                fail(str(e))
+    label = f"fitting on {engine.describe()}"
+    run_with_progress(fit_file, tasks, [f.name for f in todo], engine, summary, quiet, label, describe)
     if isinstance(stream, _FolderRecording):
         path = stream.write(out_dir / "cuboids.rrd", [out_dir / f"{f.stem}_cuboids.json" for f in files])
         if not quiet:
             out.print(f"wrote {path}")
-    if not quiet or summary.failed:
-        out.print(f"{summary.line()}: results in {out_dir}/")
-    if summary.failed:
-        raise typer.Exit(1)
+    end_of_run(summary, out_dir, quiet)
 
 
 def _rerun_stream():

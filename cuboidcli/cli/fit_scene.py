@@ -5,11 +5,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import typer
 from rich.progress import TimeElapsedColumn
 from rich.table import Table
 
 from cuboidcli.cli.common import fail, out, progress_bar
+from cuboidcli.cli.scale_options import end_of_run, run_with_progress
 from cuboidcli.fitting.scene import VISIBILITY_CHOICES, SceneConfig
 
 
@@ -112,7 +112,7 @@ def fit_rooms_folder(
     with a summary, exit 1 if any room failed."""
     from cuboidcli.cli.common import console
     from cuboidcli.room_folder import fit_room_file, out_name, room_is_complete, rooms_in
-    from cuboidcli.scaleout import Outcome, Summary, run_tasks
+    from cuboidcli.scaleout import Outcome, Summary
 
     rooms = rooms_in(folder)
     out_dir = output or Path(f"{folder.name}_cuboids")
@@ -131,29 +131,11 @@ def fit_rooms_folder(
             highlight=False,
         )
     tasks = [(job, str(r), str(out_dir / out_name(r))) for r in todo]
-    with progress_bar("{task.description}", TimeElapsedColumn(), disable=quiet) as prog:
-        task = prog.add_task(f"fitting {len(tasks)} rooms on {engine.describe()}", total=len(tasks))
 
-        def on_result(i: int, res: Outcome) -> None:
-            summary.add(res)
-            for note in res.notes:
-                console.print(f"[yellow]warning:[/] {res.name}: {note}", highlight=False)
-            if res.status == "failed":
-                console.print(f"[red]failed[/] {res.name}: {res.message}", highlight=False)
-                desc = f"{res.name}: failed"
-            else:
-                n, seconds, points = res.value
-                desc = f"{res.name}: {n} cuboids, {points} points, {seconds:.1f} s"
-            prog.update(task, advance=1, description=desc)
+    def describe(i: int, res: Outcome) -> str:
+        n, seconds, points = res.value
+        return f"{res.name}: {n} cuboids, {points} points, {seconds:.1f} s"
 
-        if tasks:
-            try:
-                names = [r.name for r in todo]
-                run = {"workers": engine.workers, "ray": engine.ray, "on_result": on_result}
-                run_tasks(fit_room_file, tasks, names, **run)
-            except ValueError as e:  # the engine could not start (Ray missing, a bad address)
-                fail(str(e))
-    if not quiet or summary.failed:
-        out.print(f"{summary.line()}: results in {out_dir}/")
-    if summary.failed:
-        raise typer.Exit(1)
+    label = f"fitting {len(tasks)} rooms on {engine.describe()}"
+    run_with_progress(fit_room_file, tasks, [r.name for r in todo], engine, summary, quiet, label, describe)
+    end_of_run(summary, out_dir, quiet)

@@ -38,3 +38,44 @@ def ray_target(workers: int, ray: bool, ray_address: str | None) -> str | None:
 
 def skip_existing_option(help: str):
     return typer.Option(True, "--skip-existing/--no-skip-existing", help=help)
+
+
+def run_with_progress(fn, tasks, names, engine, summary, quiet: bool, label: str, describe) -> None:
+    """Run ``fn(*task)`` for every task on ``engine`` (an object with ``workers`` and ``ray``, as
+    :func:`cuboidcli.scaleout.run_tasks` takes them) behind a progress bar titled ``label``. Each outcome
+    joins ``summary``; its notes and a failure are printed in one line each; ``describe(i, outcome)`` gives
+    the bar's text for a finished task. One line and exit 2 when the engine cannot start."""
+    from rich.progress import TimeElapsedColumn
+
+    from cuboidcli.cli.common import console, progress_bar
+    from cuboidcli.scaleout import run_tasks
+
+    with progress_bar("{task.description}", TimeElapsedColumn(), disable=quiet) as prog:
+        task = prog.add_task(label, total=len(tasks))
+
+        def on_result(i: int, res) -> None:
+            summary.add(res)
+            for note in res.notes:
+                console.print(f"[yellow]warning:[/] {res.name}: {note}", highlight=False)
+            if res.status == "failed":
+                console.print(f"[red]failed[/] {res.name}: {res.message}", highlight=False)
+                desc = f"{res.name}: failed"
+            else:
+                desc = describe(i, res)
+            prog.update(task, advance=1, description=desc)
+
+        if tasks:
+            try:
+                run_tasks(fn, tasks, names, workers=engine.workers, ray=engine.ray, on_result=on_result)
+            except ValueError as e:  # the engine could not start (Ray missing, a bad address)
+                fail(str(e))
+
+
+def end_of_run(summary, out_dir, quiet: bool) -> None:
+    """The run's summary line (always when something failed), and exit 1 if anything failed."""
+    from cuboidcli.cli.common import out
+
+    if not quiet or summary.failed:
+        out.print(f"{summary.line()}: results in {out_dir}/")
+    if summary.failed:
+        raise typer.Exit(1)

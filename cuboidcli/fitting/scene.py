@@ -23,12 +23,13 @@ import numpy as np
 import torch
 
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.fitting.assign import assign_points
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import FitInfo, PreparedPoints, ProgressFn, fit_points
 from cuboidcli.fitting.room_backend import RoomBackend, warm_up_room
 from cuboidcli.fitting.winner import Alignment, cuboid_kind
 from cuboidcli.geometry.cloud import RoomUp, estimate_normals, free_side_normals, room_up, voxel_groups
-from cuboidcli.geometry.room import VISIBILITY, RoomPoints, room_params, room_values
+from cuboidcli.geometry.room import VISIBILITY, RoomPoints
 from cuboidcli.sampling import Sampler
 from cuboidcli.sampling.space import SpaceCells
 from cuboidcli.solvers.base import CuboidSolver
@@ -183,16 +184,24 @@ def fit_scene(
         cells=None,
         space=SpaceCells.of(room.points),
     )
-    cuboids, info = fit_points(
-        prep, config, solver, sampler, progress, timing, alignment, backend=RoomBackend(room)
-    )
+    backend = RoomBackend(room)
+    cuboids, info = fit_points(prep, config, solver, sampler, progress, timing, alignment, backend=backend)
     down = -up.up
     for c in cuboids:
         c.kind = cuboid_kind(room.points, c, down, viewpoint)
     timing["total"] = time.perf_counter() - t0
 
     t = time.perf_counter()
-    fit_labels = _labels(room, cuboids, config, info.state)
+    # the labels of a frame's points (fitting/assign.py), with this room's values
+    fit_labels = assign_points(
+        prep.points,
+        cuboids,
+        config.tau_sq_m2,
+        config.beta,
+        config.tau_c_sq_m2,
+        config.occlusion_aware,
+        backend,
+    )
     labels_in_order = np.empty_like(fit_labels)
     labels_in_order[room.order] = fit_labels
     point_labels = labels_in_order[inverse]
@@ -222,22 +231,3 @@ def _inside_point(points: np.ndarray, viewpoints: np.ndarray | None) -> np.ndarr
         return np.asarray(viewpoints, dtype=np.float64).mean(0)
     lo, hi = np.percentile(points, [1, 99], axis=0)
     return (lo + hi) / 2.0
-
-
-def _labels(
-    room: RoomPoints, cuboids: list[Cuboid], config: FitConfig, state: np.ndarray | None
-) -> np.ndarray:
-    """Per fitting point (block order): the cuboid with the highest value if >= 0.5, -2 where the final
-    state is negative (hidden by or inside a cuboid), else -1."""
-    labels = np.full(len(room.points), -1, dtype=np.int32)
-    if not cuboids:
-        return labels
-    c = np.stack([b.center for b in cuboids])
-    a = np.stack([b.half_size for b in cuboids])
-    R = np.stack([b.rotation for b in cuboids])
-    vals = room_values(room, c, a, R, room_params(config.tau_sq_m2, config.beta, config.tau_c))
-    hi = vals.max(0)
-    labels[hi >= 0.5] = vals.argmax(0)[hi >= 0.5]
-    if state is not None:
-        labels[np.asarray(state) < 0] = -2
-    return labels

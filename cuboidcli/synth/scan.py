@@ -24,10 +24,17 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.io.atomic import atomic_write, atomic_write_json, atomic_write_text
 from cuboidcli.io.result import FitResult, read_result, write_result
-from cuboidcli.synth.mesh import build_soup
 from cuboidcli.synth.placement import Occupancy
 from cuboidcli.synth.render import RayCaster
-from cuboidcli.synth.scene import Scene, SceneOptions, _render, build_world, random_streams
+from cuboidcli.synth.scene import (
+    Scene,
+    SceneOptions,
+    build_world,
+    random_streams,
+    render_view,
+    seed_entropy,
+    world_caster,
+)
 from cuboidcli.synth.view import look_rotation
 from cuboidcli.synth.world import World, rot_z
 
@@ -206,18 +213,17 @@ def generate_room_scan(
         raise ValueError(f"views must be at least 1 (got {views})")
     camera = camera or Camera.preset("nyu")
     options = options or SceneOptions()
-    entropy = [int(seed)] if np.isscalar(seed) else [int(s) for s in seed]
+    entropy = seed_entropy(seed)
     layout_rng, view_rng, _, _ = random_streams(entropy)
     world, start = build_world(layout_rng, options)
-    soup = build_soup(world)
-    caster = RayCaster(soup.vertices, soup.faces, threads=options.threads)
+    soup, caster = world_caster(world, options)
     frames = []
     for k, (rotation, position) in enumerate(
         plan_views(world, caster, camera, start, views, view_rng, options)
     ):
         _, _, sensor_rng, rgb_rng = random_streams([*entropy, k])
         frames.append(
-            _render(
+            render_view(
                 world, soup, caster, camera, rotation, position, options, sensor_rng, rgb_rng, [*entropy, k]
             )
         )

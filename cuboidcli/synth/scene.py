@@ -10,7 +10,7 @@ import numpy as np
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.synth.layout import add_clutter, add_furniture, add_lights, add_small_objects, camera_spot
-from cuboidcli.synth.mesh import build_soup
+from cuboidcli.synth.mesh import Soup, build_soup
 from cuboidcli.synth.placement import Occupancy
 from cuboidcli.synth.render import RayCaster
 from cuboidcli.synth.room import build_room
@@ -102,8 +102,18 @@ def random_streams(seed: int | Sequence[int]) -> tuple[np.random.Generator, ...]
 
     Separate streams keep, e.g., the room unchanged when the depth noise is switched off.
     """
-    entropy = [int(seed)] if np.isscalar(seed) else [int(s) for s in seed]
-    return tuple(np.random.default_rng(s) for s in np.random.SeedSequence(entropy).spawn(4))
+    return tuple(np.random.default_rng(s) for s in np.random.SeedSequence(seed_entropy(seed)).spawn(4))
+
+
+def seed_entropy(seed: int | Sequence[int]) -> list[int]:
+    """A seed (an int or a sequence of ints) as the list of ints its random streams are spawned from."""
+    return [int(seed)] if np.isscalar(seed) else [int(s) for s in seed]
+
+
+def world_caster(world: World, options: SceneOptions) -> tuple[Soup, RayCaster]:
+    """The triangle soup of a world and the ray caster over it (built once, cast from every view)."""
+    soup = build_soup(world)
+    return soup, RayCaster(soup.vertices, soup.faces, threads=options.threads)
 
 
 def generate_scene(
@@ -116,15 +126,14 @@ def generate_scene(
     """
     camera = camera or Camera.preset("nyu")
     options = options or SceneOptions()
-    entropy = [int(seed)] if np.isscalar(seed) else [int(s) for s in seed]
+    entropy = seed_entropy(seed)
     layout_rng, view_rng, sensor_rng, rgb_rng = random_streams(entropy)
     world, position = build_world(layout_rng, options)
-    soup = build_soup(world)
-    caster = RayCaster(soup.vertices, soup.faces, threads=options.threads)
+    soup, caster = world_caster(world, options)
     rotation = choose_view(
         caster, camera, position, soup, world, view_rng, options.pitch_deg, options.roll_sigma_deg
     )
-    return _render(world, soup, caster, camera, rotation, position, options, sensor_rng, rgb_rng, entropy)
+    return render_view(world, soup, caster, camera, rotation, position, options, sensor_rng, rgb_rng, entropy)
 
 
 def render_world(
@@ -141,15 +150,19 @@ def render_world(
     ``seed`` drives the sensor noise and the colour noise (the same streams as :func:`generate_scene`).
     """
     options = options or SceneOptions()
-    entropy = [int(seed)] if np.isscalar(seed) else [int(s) for s in seed]
+    entropy = seed_entropy(seed)
     _, _, sensor_rng, rgb_rng = random_streams(entropy)
-    soup = build_soup(world)
-    caster = RayCaster(soup.vertices, soup.faces, threads=options.threads)
+    soup, caster = world_caster(world, options)
     rotation, position = np.asarray(rotation, float), np.asarray(position, float)
-    return _render(world, soup, caster, camera, rotation, position, options, sensor_rng, rgb_rng, entropy)
+    return render_view(world, soup, caster, camera, rotation, position, options, sensor_rng, rgb_rng, entropy)
 
 
-def _render(world, soup, caster, camera, rotation, position, options, sensor_rng, rgb_rng, entropy) -> Scene:
+def render_view(
+    world, soup, caster, camera, rotation, position, options, sensor_rng, rgb_rng, entropy
+) -> Scene:
+    """One view of a built world: ray cast from the camera pose (``rotation`` (3, 3) camera-to-world,
+    ``position`` (3,)), sensor depth, shading and the ground truth of what it sees; ``entropy`` is
+    recorded as the frame's seed."""
     hits = caster.cast(camera, rotation, position)
     face = np.maximum(hits.face, 0)
     instances = np.where(hits.hit, soup.object_id[face], 0).astype(np.int32)

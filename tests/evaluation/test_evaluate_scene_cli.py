@@ -7,12 +7,10 @@ import json
 
 import numpy as np
 import pytest
-import typer
 from typer.testing import CliRunner
 
 from cuboidcli import __version__
 from cuboidcli.camera import Camera
-from cuboidcli.cli.evaluate import register
 from cuboidcli.evaluation import scene_run
 from cuboidcli.scene import load_scene
 from cuboidcli.synth.scan import generate_room_scan, write_room_scan
@@ -31,18 +29,6 @@ KEYS = (
     "shell_box_recall_iou0.25_pct",
     "seconds",
 )
-
-
-@pytest.fixture(scope="module")
-def app() -> typer.Typer:
-    app = typer.Typer()
-
-    @app.callback()
-    def main() -> None:  # keeps `evaluate` a subcommand
-        pass
-
-    register(app)
-    return app
 
 
 @pytest.fixture(scope="module")
