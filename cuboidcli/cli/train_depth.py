@@ -102,6 +102,11 @@ def train_depth_cmd(
     l1_weight: float = opt.train_option(DepthTrainConfig, "l1_weight", more=_DEFAULTS_NOTE),
     min_crop: float = opt.train_option(DepthTrainConfig, "min_crop", more=_DEFAULTS_NOTE),
     jitter: float = opt.train_option(DepthTrainConfig, "jitter", more=_DEFAULTS_NOTE),
+    white_balance: float = opt.train_option(DepthTrainConfig, "white_balance", more=_DEFAULTS_NOTE),
+    blur: float = opt.train_option(DepthTrainConfig, "blur", more=_DEFAULTS_NOTE),
+    noise: float = opt.train_option(DepthTrainConfig, "noise", more=_DEFAULTS_NOTE),
+    grad_weight: float = opt.train_option(DepthTrainConfig, "grad_weight", more=_DEFAULTS_NOTE),
+    init: str | None = opt.train_option(DepthTrainConfig, "init", more="Ignored with --resume."),
     log_every: int = opt.train_option(DepthTrainConfig, "log_every"),
     out: Path = opt.out_option("runs/depth"),
     resume: Path | None = opt.resume_option("net, schedule and augmentation come from it."),
@@ -124,6 +129,8 @@ def train_depth_cmd(
     from cuboidcli.learn.depth_train import RESUME_OVERRIDES, train_depth
 
     check_training_paths(data, resume, out)
+    if init is not None and resume is None and not Path(init).is_file():
+        fail(f"--init {init}: no such weights file (give a depth network's .pt, e.g. models/depth_v3.pt)")
     if resume is None and (out / "last.pt").is_file():
         fail(
             f"--out {out} already holds a training run; continue it with --resume {out / 'last.pt'} "
@@ -138,7 +145,9 @@ def train_depth_cmd(
     overrides = set(RESUME_OVERRIDES) - {"max_minutes"}
     if resume is not None:
         overrides |= {name for name in ("epochs", "max_minutes") if given(name)}
-        ignored = [name for name in ("batch", "lr", "l1_weight", "min_crop", "jitter", "seed") if given(name)]
+        tuned = ("batch", "lr", "l1_weight", "min_crop", "jitter", "white_balance", "blur", "noise")
+        tuned = (*tuned, "grad_weight")
+        ignored = [name for name in (*tuned, "init", "seed") if given(name)]
         if ignored:
             options = ", ".join("--" + name.replace("_", "-") for name in ignored)
             _say(f"warning: {options}: ignored with --resume (the checkpoint's values apply)", style="yellow")

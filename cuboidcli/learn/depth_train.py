@@ -73,6 +73,16 @@ class DepthTrainConfig(WarmupCosine, RunFields):
     """Random horizontal flips."""
     jitter: float = 0.3
     """Colour jitter strength: factors drawn from [1 - jitter, 1 + jitter]."""
+    white_balance: float = 0.0
+    """Per-channel colour gains drawn from [1 - white_balance, 1 + white_balance] (camera white balance)."""
+    blur: float = 0.0
+    """Largest Gaussian blur sigma, pixels at the net's input; half the images are blurred (0 = none)."""
+    noise: float = 0.0
+    """Largest standard deviation of per-pixel Gaussian noise on the [0, 1] image (0 = none)."""
+    grad_weight: float = 0.0
+    """Weight of the multi-scale gradient-matching loss on log depth (shape and edges; 0 = off)."""
+    init: str | None = None
+    """Weights file (a checkpoint of this net) to start from instead of random weights."""
     log_every: int = 10
     """Print and log the training loss every N steps."""
 
@@ -83,15 +93,16 @@ class DepthTrainConfig(WarmupCosine, RunFields):
         for name in ("lr", "grad_clip"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"{name} must be positive, got {getattr(self, name)}")
-        for name in ("weight_decay", "warmup", "l1_weight", "final_lr_ratio"):
+        for name in ("weight_decay", "warmup", "l1_weight", "final_lr_ratio", "blur", "noise", "grad_weight"):
             if not getattr(self, name) >= 0:
                 raise ValueError(f"{name} must not be negative, got {getattr(self, name)}")
         if not 0 <= self.silog_lambda <= 1:
             raise ValueError(f"silog_lambda must lie in [0, 1], got {self.silog_lambda}")
         if not 0 < self.min_crop <= 1:
             raise ValueError(f"min_crop must lie in (0, 1] (1 = no crops), got {self.min_crop}")
-        if not 0 <= self.jitter < 1:
-            raise ValueError(f"jitter must lie in [0, 1), got {self.jitter}")
+        for name in ("jitter", "white_balance"):
+            if not 0 <= getattr(self, name) < 1:
+                raise ValueError(f"{name} must lie in [0, 1), got {getattr(self, name)}")
         if self.max_minutes is not None and not self.max_minutes > 0:
             raise ValueError(f"max_minutes must be positive, got {self.max_minutes}")
         if self.device != "cpu" and not self.device.startswith("cuda"):
@@ -163,7 +174,32 @@ def augment(
         grey = x.mean(1, keepdim=True)
         x = (x - grey) * factors[2] + grey  # saturation
         x = x.clamp(0.0, 1.0)
+    if cfg.white_balance > 0:
+        gains = 1.0 + cfg.white_balance * (2.0 * torch.rand(b, 3, 1, 1, generator=gen) - 1.0)
+        x = (x * gains).clamp(0.0, 1.0)
+    if cfg.blur > 0:
+        x = torch.cat([_blurred(x[i : i + 1], cfg.blur, gen) for i in range(b)])
+    if cfg.noise > 0:
+        sigma = cfg.noise * torch.rand(b, 1, 1, 1, generator=gen)
+        x = (x + sigma * torch.randn(x.shape, generator=gen)).clamp(0.0, 1.0)
     return x, d
+
+
+def _blurred(x: torch.Tensor, max_sigma: float, gen: torch.Generator) -> torch.Tensor:
+    """x (1, 3, h, w) blurred with a Gaussian of sigma drawn from [0, max_sigma] px, or as it is (even odds):
+    real photos are softer than the renders (optics, motion, JPEG)."""
+    if float(torch.rand((), generator=gen)) < 0.5:
+        return x
+    sigma = max_sigma * float(torch.rand((), generator=gen))
+    radius = math.ceil(2.5 * sigma)
+    if radius < 1:
+        return x
+    t = torch.arange(-radius, radius + 1, dtype=x.dtype)
+    k = torch.exp(-0.5 * (t / sigma) ** 2)
+    k = k / k.sum()
+    x = F.pad(x, (radius, radius, radius, radius), mode="replicate")
+    x = F.conv2d(x, k.view(1, 1, 1, -1).expand(3, 1, 1, -1), groups=3)
+    return F.conv2d(x, k.view(1, 1, -1, 1).expand(3, 1, -1, 1), groups=3)
 
 
 def depth_loss(pred: torch.Tensor, target: torch.Tensor, cfg: DepthTrainConfig) -> torch.Tensor:
@@ -176,7 +212,43 @@ def depth_loss(pred: torch.Tensor, target: torch.Tensor, cfg: DepthTrainConfig) 
     mean_g2 = (g * g).sum((1, 2, 3)) / n
     silog = (mean_g2 - cfg.silog_lambda * mean_g**2).clamp_min(1e-8).sqrt()
     l1 = torch.where(valid, (pred - target).abs(), torch.zeros_like(pred)).sum() / valid.sum().clamp_min(1)
-    return silog.mean() + cfg.l1_weight * l1
+    loss = silog.mean() + cfg.l1_weight * l1
+    if cfg.grad_weight > 0:
+        loss = loss + cfg.grad_weight * gradient_loss(g, valid)
+    return loss
+
+
+#: Scales of the gradient-matching loss: the log-depth error at full, 1/2, 1/4 and 1/8 resolution.
+GRAD_SCALES = 4
+
+
+def gradient_loss(g: torch.Tensor, valid: torch.Tensor) -> torch.Tensor:
+    """Multi-scale gradient matching (Li & Snavely, MegaDepth 2018): the mean absolute x and y differences of
+    the log-depth error ``g`` (B, 1, h, w; 0 off ``valid``) between valid neighbours, summed over
+    :data:`GRAD_SCALES` scales. A global scale error has no gradient, so this term only sees the shape:
+    a plane predicted tilted or a step smeared across an object's boundary."""
+    total = g.new_zeros(())
+    for k in range(GRAD_SCALES):
+        if k:
+            g, valid = g[..., ::2, ::2], valid[..., ::2, ::2]
+        vx = valid[..., :, 1:] & valid[..., :, :-1]
+        vy = valid[..., 1:, :] & valid[..., :-1, :]
+        dx = torch.where(vx, (g[..., :, 1:] - g[..., :, :-1]).abs(), torch.zeros_like(g[..., :, 1:]))
+        dy = torch.where(vy, (g[..., 1:, :] - g[..., :-1, :]).abs(), torch.zeros_like(g[..., 1:, :]))
+        total = total + (dx.sum() + dy.sum()) / (vx.sum() + vy.sum()).clamp_min(1)
+    return total
+
+
+def read_init(path: str | Path) -> tuple[DepthNetConfig, dict]:
+    """The configuration and state dict of the depth-network weights file ``path`` (``--init``); its
+    canonical focal length comes with it (the targets are scaled to it)."""
+    try:
+        ckpt = torch.load(path, map_location="cpu", weights_only=True)
+    except Exception as e:  # noqa: BLE001 - any unreadable file gets the same one-line answer
+        raise ValueError(f"cannot read --init {path}: {e}") from None
+    if not isinstance(ckpt, dict) or "state_dict" not in ckpt or "config" not in ckpt:
+        raise ValueError(f"--init {path} is not a weights file of the depth network (no config / state_dict)")
+    return DepthNetConfig.from_dict(ckpt["config"]), ckpt["state_dict"]
 
 
 class DepthJob(OneNetJob):
@@ -211,7 +283,10 @@ class DepthJob(OneNetJob):
             raise ValueError(f"val frame {no_rgb[0]} has no RGB image; the depth net trains on RGB-D frames")
         self.train_frames, self.val_frames = train_frames, val_frames
         net_cfg = self.net_cfg or DepthNetConfig()
-        if state is None:
+        init_weights = None
+        if state is None and cfg.init is not None:
+            net_cfg, init_weights = read_init(cfg.init)
+        elif state is None:
             net_cfg = replace(net_cfg, canonical_focal_px=focal_at_input(train_frames[0].camera, net_cfg))
         self.net_cfg = net_cfg
         self.rgb_all, self.depth_all = load_split(train_frames, net_cfg)
@@ -221,6 +296,8 @@ class DepthJob(OneNetJob):
         if state is not None:
             self.net.load_state_dict(state["state_dict"])
             self.gen.set_state(state["generator"])
+        elif init_weights is not None:
+            self.net.load_state_dict(init_weights)
         self.steps_per_epoch = len(train_frames) // cfg.batch
         self.total_steps = self.steps_per_epoch * cfg.epochs
 

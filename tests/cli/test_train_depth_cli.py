@@ -132,6 +132,10 @@ def test_ctrl_c_points_at_last_pt(app, dataset, tmp_path, monkeypatch):
         (["--max-minutes", "-1"], "max_minutes must be positive"),
         (["--device", "tpu"], "--device 'tpu': choose auto, cpu or cuda"),
         (["--batch", "9"], "batch 9 is larger than the 8 frames"),
+        (["--white-balance", "1"], "white_balance must lie in [0, 1)"),
+        (["--blur", "-1"], "blur must not be negative"),
+        (["--grad-weight", "-0.1"], "grad_weight must not be negative"),
+        (["--init", "nope.pt"], "--init nope.pt: no such weights file"),
     ],
 )
 def test_bad_values_fail_in_one_line(app, dataset, tmp_path, args, message):
@@ -182,3 +186,27 @@ def test_module_entry_point_of_the_depth_errors(dataset, tmp_path, capsys):
         [sys.executable, "-m", "cuboidcli.cli.depth_evaluate", "--help"], capture_output=True, text=True
     )
     assert usage.returncode == 0 and "python -m cuboidcli.cli.depth_evaluate" in usage.stdout
+
+
+def test_init_starts_from_a_weights_file(app, dataset, tmp_path):
+    """--init: the first run's best weights are the start of a second run, whose net (and canonical focal
+    length) is theirs; at a learning rate too small to move them, the second run's weights are the first's."""
+    first = tmp_path / "first"
+    assert _run(app, dataset, "--out", first, "--epochs", "1", *TINY_RUN).exit_code == 0
+    second = tmp_path / "second"
+    r = _run(app, dataset, "--out", second, "--epochs", "1", "--init", first / "best.pt", "--lr", "1e-12",
+             "--grad-weight", "0.5", "--blur", "1", "--noise", "0.02", "--white-balance", "0.1", *TINY_RUN)
+    assert r.exit_code == 0, r.output
+    a = torch.load(first / "best.pt", weights_only=True)
+    b = torch.load(second / "best.pt", weights_only=True)
+    assert a["config"] == b["config"]
+    for name, value in a["state_dict"].items():
+        if value.is_floating_point() and "running" not in name:
+            assert torch.allclose(value, b["state_dict"][name], atol=1e-6), name
+    fresh = _run(app, dataset, "--out", tmp_path / "fresh", "--epochs", "1", "--lr", "1e-12", *TINY_RUN)
+    assert fresh.exit_code == 0
+    c = torch.load(tmp_path / "fresh" / "best.pt", weights_only=True)["state_dict"]
+    assert not torch.allclose(a["state_dict"]["head.weight"], c["head.weight"])
+    (tmp_path / "junk.pt").write_bytes(b"not a checkpoint")
+    bad = _run(app, dataset, "--out", tmp_path / "o", "--init", tmp_path / "junk.pt", *TINY_RUN)
+    assert bad.exit_code == 2 and "cannot read --init" in bad.output
