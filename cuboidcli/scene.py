@@ -190,6 +190,7 @@ def scene_result(
         "up": info.up.to_dict(),
         "gravity": {"down": [round(-float(v), 6) for v in info.up.up], "source": info.up.source},
         "world_from_input": w.tolist(),
+        "objects": [o.to_dict(i) for i, o in enumerate(info.objects)],
     }
     if seq is not None:
         extras["frames"] = [
@@ -303,6 +304,15 @@ class SceneResult:
         """The cuboids in selection order, in the input's frame, metres (each with its ``kind``)."""
         return self.record.cuboids
 
+    @property
+    def objects(self) -> list[Cuboid]:
+        """One upright box per object of the room (a table with its legs, a chair with its back), largest
+        first; ``extras["cuboids"]`` holds the indices of the cuboids that make it up."""
+        return [
+            Cuboid(o.box.center, o.box.half_size, o.box.rotation, extras={"cuboids": list(o.cuboids)})
+            for o in self.info.objects
+        ]
+
     def save(self, path: str | Path, **outputs) -> list[Path]:
         """Write the JSON to ``path`` and the outputs asked for beside it (``glb``, ``ply``, ``overlay``,
         ``with_points``, ``scenes``); see :func:`write_scene_outputs`."""
@@ -311,5 +321,6 @@ class SceneResult:
     def __repr__(self) -> str:
         kinds = [c.kind for c in self.cuboids]
         return (
-            f"SceneResult({len(kinds)} cuboids: {', '.join(sorted(set(kinds)))}; {self.info.fit.stop_reason})"
+            f"SceneResult({len(kinds)} cuboids: {', '.join(sorted(set(kinds)))}; {len(self.info.objects)} "
+            f"objects; {self.info.fit.stop_reason})"
         )

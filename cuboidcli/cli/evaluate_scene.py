@@ -40,6 +40,8 @@ ROWS = (
     ("object_precision_pct", "object precision %", 1),
     ("object_box_recall_iou0.25_pct", "object box recall@0.25 %", 1),
     ("object_box_recall_iou0.5_pct", "object box recall@0.5 %", 1),
+    ("object_box_precision_iou0.25_pct", "object box precision@0.25 %", 1),
+    ("part_box_recall_iou0.25_pct", "part box recall@0.25 %", 1),
     ("shell_box_recall_iou0.25_pct", "shell recall@0.25 %", 1),
     ("seconds", "seconds per room", 2),
 )

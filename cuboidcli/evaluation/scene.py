@@ -11,9 +11,11 @@ SURFACE (:func:`point_box_distance`; a point inside a box is as far as that box'
   nonzero instance id, shell slabs too) with >= 1 % of the points is eligible; a cuboid explains it when it
   holds >= 50 % of the object's points and >= 50 % of its own points lie on the object.
 - Box recall at IoU 0.25 and 0.5 (greedy one-to-one matching, :func:`.iou.greedy_matches`), kind-aware:
-  ground-truth boxes of kind ``object`` are matched with predicted boxes of kind ``object`` by 3D IoU, the
-  shell (floor, wall, ceiling) with the predicted shell by the PLANAR IoU of :func:`planar_iou`;
-  precision counts the predicted boxes of each group.
+  ground-truth boxes of kind ``object`` are matched by 3D IoU with the fit's whole-object boxes
+  (:mod:`cuboidcli.fitting.objects`; ``object_box_*``) and, for reference, with its cuboids of kind
+  ``object`` (the parts: ``part_box_*``); the shell (floor, wall, ceiling) with the predicted shell by the
+  PLANAR IoU of :func:`planar_iou`; precision counts the predicted boxes of each group. A method without
+  object boxes (the Open3D baseline) is scored on its object cuboids in both.
 
 Why the shell is not matched in 3D: a ground-truth shell slab is 5 cm thick and lies just outside the room,
 while a fitted slab is a few millimetres thick on the surface it explains. Their 3D IoU measures the two
@@ -45,7 +47,7 @@ SHELL_OFFSET_M = 0.10
 #: Row keys that are counts, summed by :func:`aggregate_scenes` (with every ``*_matches_iou*``).
 _COUNTS = frozenset(
     {"objects_explained", "objects_eligible", "cuboids_explaining", "gt_objects", "pred_objects"}
-    | {"gt_shell", "pred_shell"}
+    | {"gt_parts", "pred_parts", "gt_shell", "pred_shell"}
 )
 
 
@@ -158,6 +160,7 @@ def _planar_iou_matrix(pred: list[Cuboid], gt: list[Cuboid]) -> np.ndarray:
 #: The two groups of boxes matched one to one: (key prefix, count key suffix, cuboid kinds, IoU matrix).
 _GROUPS = (
     ("object", "objects", frozenset({"object"}), _iou_matrix),
+    ("part", "parts", frozenset({"object"}), _iou_matrix),
     ("shell", "shell", SHELL_KINDS, _planar_iou_matrix),
 )
 
@@ -177,6 +180,7 @@ def scene_metrics(
     instance: np.ndarray,
     inlier_m: float = 0.05,
     iou_thresholds=IOU_THRESHOLDS,
+    objects: list[Cuboid] | None = None,
 ) -> dict:
     """The metrics of one room (module docstring) as a flat row in reporting units (%, cm).
 
@@ -187,7 +191,9 @@ def scene_metrics(
     ``objects_explained``, ``objects_eligible``, ``cuboids_explaining``; per IoU threshold t (``t:g``,
     e.g. 0.25) ``object_box_recall_iou{t}_pct``, ``object_box_precision_iou{t}_pct``,
     ``object_matches_iou{t}``, ``shell_box_recall_iou{t}_pct``, ``shell_box_precision_iou{t}_pct``,
-    ``shell_matches_iou{t}``; and ``gt_objects``, ``pred_objects``, ``gt_shell``, ``pred_shell``.
+    ``shell_matches_iou{t}``, the same with ``part`` for the object cuboids; and ``gt_objects``,
+    ``pred_objects``, ``gt_parts``, ``pred_parts``, ``gt_shell``, ``pred_shell``. ``objects``: the fit's
+    whole-object boxes (None: its object cuboids stand for them).
     """
     points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
     instance = np.asarray(instance).ravel()
@@ -208,6 +214,8 @@ def scene_metrics(
     )
     for name, plural, kinds, iou_matrix in _GROUPS:
         p, g = [c for c in pred if c.kind in kinds], [c for c in gt if c.kind in kinds]
+        if name == "object" and objects is not None:
+            p = list(objects)
         row[f"gt_{plural}"], row[f"pred_{plural}"] = len(g), len(p)
         for t, m in _box_matches(iou_matrix(p, g), iou_thresholds).items():
             row[f"{name}_box_recall_iou{t:g}_pct"] = _ratio(m, len(g))

@@ -90,13 +90,14 @@ class SceneEvalReport:
 
 
 def _fit(folder: Path, fitter, settings: SceneEvalSettings):
-    """Fit one scan: (fused points (N, 3), cuboids, visibility used, seconds of the fit alone)."""
+    """Fit one scan: (fused points (N, 3), cuboids, object boxes, visibility used, seconds of the fit
+    alone)."""
     if not settings.bare:
         t = time.perf_counter()
         res = fitter.fit_scene(folder, scene=settings.scene)
         # reading and fusing the frames is the same for every method: leave it out of the fit's time
         seconds = time.perf_counter() - t - res.input.load_seconds
-        return res.input.cloud.points, res.cuboids, res.info.visibility, seconds
+        return res.input.cloud.points, res.cuboids, res.objects, res.info.visibility, seconds
     from cuboidcli.fitting.scene import fit_scene
     from cuboidcli.scene import load_scene
 
@@ -107,7 +108,8 @@ def _fit(folder: Path, fitter, settings: SceneEvalSettings):
         cloud.points, fitter.config, settings.scene, solver=fitter.solver, sampler=fitter.sampler,
         viewpoints=None,
     )  # fmt: skip
-    return cloud.points, cuboids, info.visibility, time.perf_counter() - t
+    seconds = time.perf_counter() - t
+    return cloud.points, cuboids, [o.box for o in info.objects], info.visibility, seconds
 
 
 def _scan_up(folder: Path) -> np.ndarray:
@@ -138,11 +140,10 @@ def evaluate_scene(
         raise InputError(f"{folder}: cannot read its ground truth ({type(e).__name__}: {e})") from e
     if progress:
         progress("fitting")
-    fused, cuboids, visibility, seconds = _fit(folder, fitter, settings)
+    fused, cuboids, objects, visibility, seconds = _fit(folder, fitter, settings)
     name = folder.name
-    rows = [
-        {"scene": name, "method": FITTED, **scene_metrics(cuboids, gt, points, instance), "seconds": seconds}
-    ]
+    metrics = scene_metrics(cuboids, gt, points, instance, objects=objects)
+    rows = [{"scene": name, "method": FITTED, **metrics, "seconds": seconds}]
     if settings.baseline:
         from cuboidcli.evaluation.baseline import planes_and_clusters
 

@@ -25,6 +25,7 @@ import torch
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import assign_points
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.objects import SceneObject, group_objects
 from cuboidcli.fitting.pipeline import FitInfo, PreparedPoints, ProgressFn, fit_points
 from cuboidcli.fitting.room_backend import RoomBackend, warm_up_room
 from cuboidcli.fitting.winner import Alignment, cuboid_kind
@@ -97,6 +98,9 @@ class SceneInfo:
     point_labels: np.ndarray
     """(N,) int32: the label of each input point (that of its voxel's fitting point)."""
     timing_s: dict = field(default_factory=dict)
+    objects: list[SceneObject] = field(default_factory=list)
+    """The room's whole objects (furniture with its legs, points no cuboid explains), largest first
+    (:func:`cuboidcli.fitting.objects.group_objects`)."""
 
 
 def fitting_voxels(
@@ -206,11 +210,15 @@ def fit_scene(
     labels_in_order[room.order] = fit_labels
     point_labels = labels_in_order[inverse]
     timing["assign"] = time.perf_counter() - t
+    t = time.perf_counter()
+    objects = group_objects(room.points, fit_labels, cuboids, up.up, voxel)
+    timing["objects"] = time.perf_counter() - t
     info.timing_s = {k: round(v, 6) for k, v in timing.items()}
     info.grid_step = 0
     scene_info = SceneInfo(
         fit=info, visibility=visibility, voxel_m=voxel, up=up, viewpoint=viewpoint,
         fit_points=room.points, fit_labels=fit_labels, point_labels=point_labels, timing_s=info.timing_s,
+        objects=objects,
     )  # fmt: skip
     return cuboids, scene_info
 

@@ -110,6 +110,7 @@ def test_bare_fits_the_fused_points_without_their_cameras(rooms, monkeypatch):
 
     class Info:
         visibility = "views"
+        objects = []
 
     def fake_fit_scene(points, config, scene, **parts):
         calls.append((points, config, scene, parts))

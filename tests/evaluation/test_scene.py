@@ -267,3 +267,20 @@ def test_shell_recall_is_planar(room):
     tilted = Cuboid([2.0, 1.5, 0.0025], [2.0, 1.5, 0.0025], rot_x(math.radians(30.0)), kind="floor")
     m = scene_metrics([tilted, *gt[1:]], gt, points, ids)
     assert m["shell_box_recall_iou0.25_pct"] == pytest.approx(200.0 / 3.0)
+
+
+def test_object_boxes_are_scored_beside_the_parts(room):
+    """objects=: the whole-object boxes make object_box_*, the object cuboids part_box_*."""
+    gt, points, instance = room
+    objects = [c for c in gt if c.kind == "object"]
+    # the top tenth of each object: a table top
+    parts = [Cuboid(c.center + [0, 0, 0.9 * c.half_size[2]], c.half_size * [1, 1, 0.1], c.rotation)
+             for c in objects]  # fmt: skip
+    shell = [c for c in gt if c.kind != "object"]
+    row = scene_metrics(shell + parts, gt, points, instance, objects=objects)
+    assert row["object_box_recall_iou0.25_pct"] == 100.0 and row["pred_objects"] == len(objects)
+    assert row["part_box_recall_iou0.25_pct"] == 0.0 and row["pred_parts"] == len(parts)
+    plain = scene_metrics(shell + parts, gt, points, instance)
+    assert plain["object_box_recall_iou0.25_pct"] == 0.0 == plain["part_box_recall_iou0.25_pct"]
+    pooled = aggregate_scenes([row])
+    assert pooled["object_box_recall_iou0.25_pct"] == 100.0 and pooled["part_box_recall_iou0.25_pct"] == 0.0

@@ -1,0 +1,191 @@
+"""Whole objects of a room: which cuboids and which remaining points make up one piece of furniture, and an
+upright box around it.
+
+The estimator abstracts a room into parts: a table is its top (a thin slab), a chair its seat, a sofa its
+seat and back; legs, stands and thin rims are explained by no cuboid. People who want the furniture (a robot
+planning around a table, a detector-style evaluation) need one box per object, legs included. This step
+groups, after the fit, without changing the cuboids:
+
+1. The candidate points are the fitting points that are not the room's shell: not inliers of a floor, wall
+   or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of one, and above the floor.
+2. Seeds: the inliers of each object cuboid, split into the pieces that touch (neighbours within
+   :data:`REACH` voxel cells). One cuboid laid over two tables gives two seeds; pieces of fewer than
+   :data:`MIN_SEED_POINTS` points are no seed.
+3. Every other candidate point joins the seed nearest to it through touching points (a breadth-first
+   growth, at most :data:`GROW_LIMIT_M`): legs join their table top, a chair's back its seat.
+4. Candidate points no seed reaches form objects of their own when they hold at least
+   :data:`MIN_OBJECT_POINTS` points (a bag or a ball that no cuboid explains).
+5. Each group's box is upright (its vertical axis the room's up), turned to the yaw of its cuboid (of its
+   points' principal axis for a group without one), around its points; a box that comes within
+   :data:`FLOOR_TOUCH` voxels of the floor stands on it.
+
+On the synthetic room scans (3 rooms, 31 objects) these boxes recall 67.7 % of the ground-truth furniture
+boxes at 3D IoU 0.25 where the parts recall 38.7 % (docs/scenes.md).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cuboidcli.cuboid import Cuboid
+from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
+
+#: Points touch when their voxel cells are at most this many cells apart along every axis (2 bridges the
+#: one-voxel gaps of thin legs and sparse far surfaces).
+REACH = 2
+#: A touching piece of a cuboid's inliers seeds an object from this many fitting points on.
+MIN_SEED_POINTS = 8
+#: A group of points (seeded or not) is an object from this many fitting points on.
+MIN_OBJECT_POINTS = 20
+#: Points join a seed at most this far from it through touching points (m).
+GROW_LIMIT_M = 1.5
+#: Points this many voxels or closer to a floor, wall or ceiling cuboid belong to the shell.
+SHELL_CLEARANCE = 1.5
+#: A level object cuboid at most this thick is a top: its object takes nothing above it (m).
+TOP_SLAB_M = 0.1
+#: A box whose lowest point is within this many voxels of the floor is extended down to it.
+FLOOR_TOUCH = 3.0
+
+
+@dataclass
+class SceneObject:
+    """One object of a room: its upright box (kind ``object``), the cuboids (indices in selection order) that
+    seeded it (none for points no cuboid explains) and how many fitting points it holds."""
+
+    box: Cuboid
+    cuboids: tuple[int, ...]
+    points: int
+
+    def to_dict(self, index: int) -> dict:
+        c = self.box
+        return {
+            "id": index,
+            "center": [round(float(v), 6) for v in c.center],
+            "half_size": [round(float(v), 6) for v in c.half_size],
+            "rotation": [[round(float(v), 6) for v in row] for row in c.rotation],
+            "quat_wxyz": [round(float(v), 6) for v in c.quat_wxyz],
+            "cuboids": list(self.cuboids),
+            "points": self.points,
+        }
+
+
+def level_frame(up: np.ndarray) -> np.ndarray:
+    """(3, 3) a rotation whose third column is ``up`` (unit): world = R @ level."""
+    z = np.asarray(up, dtype=np.float64)
+    z = z / np.linalg.norm(z)
+    a = np.eye(3)[int(np.argmin(np.abs(z)))]
+    x = a - (a @ z) * z
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(z, x), z], 1)
+
+
+def _outside_distance(points: np.ndarray, c: Cuboid) -> np.ndarray:
+    """(N,) distance of each point from the solid box ``c`` (0 inside)."""
+    local = (points - c.center) @ c.rotation
+    return np.linalg.norm(np.maximum(np.abs(local) - c.half_size, 0.0), axis=1)
+
+
+def _yaw(rotation_level: np.ndarray) -> float:
+    """The heading (radians about the level frame's z) of a box's most horizontal axis."""
+    k = int(np.argmax(np.linalg.norm(rotation_level[:2], axis=0)))
+    return math.atan2(rotation_level[1, k], rotation_level[0, k])
+
+
+def _principal_yaw(xy: np.ndarray) -> float:
+    """The heading of the principal axis of points (N, 2) on the floor plane."""
+    d = xy - xy.mean(0)
+    _, vecs = np.linalg.eigh(d.T @ d)
+    return math.atan2(vecs[1, 1], vecs[0, 1])
+
+
+def _yaw_matrix(theta: float) -> np.ndarray:
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def group_objects(
+    points: np.ndarray, labels: np.ndarray, cuboids: list[Cuboid], up: np.ndarray, voxel_m: float
+) -> list[SceneObject]:
+    """The objects of a fitted room (module docstring), largest first.
+
+    ``points`` (M, 3) are the fitting points (voxel means, world frame), ``labels`` (M,) their assignment
+    (cuboid index, -1 none, -2 hidden by or inside a cuboid), ``cuboids`` the fit with their ``kind``,
+    ``up`` (3,) the room's up direction and ``voxel_m`` the voxel the points were made with."""
+    points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+    labels = np.asarray(labels).ravel()
+    if len(labels) != len(points):
+        raise ValueError(f"{len(labels)} labels for {len(points)} points")
+    R = level_frame(up)
+    level = points @ R
+    shell = [i for i, c in enumerate(cuboids) if c.kind != "object"]
+    floors = [cuboids[i] for i in shell if cuboids[i].kind == "floor"]
+    z = R[:, 2]
+    if floors:  # the floor's top surface
+        floor_z = max(float(c.center @ z + np.abs(c.rotation.T @ z) @ c.half_size) for c in floors)
+    elif len(points):
+        floor_z = float(np.percentile(level[:, 2], 1))
+    else:
+        return []
+    keep = ~np.isin(labels, shell) & (level[:, 2] > floor_z + SHELL_CLEARANCE * voxel_m)
+    for i in shell:
+        keep &= _outside_distance(points, cuboids[i]) > SHELL_CLEARANCE * voxel_m
+    idx = np.flatnonzero(keep)
+    n = len(idx)
+    if n == 0:
+        return []
+    lab = labels[idx]
+    pairs = neighbour_pairs(points[idx], voxel_m, REACH)
+
+    # seeds: touching pieces of each object cuboid's inliers
+    same = (lab[pairs[:, 0]] == lab[pairs[:, 1]]) & (lab[pairs[:, 0]] >= 0)
+    piece = components(n, pairs[same])
+    group = np.full(n, -1, dtype=np.int64)
+    seeds: list[int] = []  # the cuboid of each group; -1 for a group of unexplained points
+    roots, counts = np.unique(piece, return_counts=True)
+    for root, count in zip(roots, counts, strict=True):
+        if count >= MIN_SEED_POINTS and lab[root] >= 0:
+            group[piece == root] = len(seeds)
+            seeds.append(int(lab[root]))
+    # a level slab (a table top, a shelf board) takes what hangs below it, not what stands on it
+    ceiling = np.full(len(seeds), np.inf)
+    for g, part in enumerate(seeds):
+        c = cuboids[part]
+        thin = int(np.argmin(c.half_size))
+        if c.half_size[thin] <= TOP_SLAB_M / 2 and abs(c.rotation[:, thin] @ z) > math.cos(math.radians(20)):
+            ceiling[g] = float(c.center @ z + np.abs(c.rotation.T @ z) @ c.half_size) + voxel_m
+    group = grow_labels(group, pairs, max(1, int(GROW_LIMIT_M / voxel_m)), level[idx, 2], ceiling)
+
+    # points no seed reached: objects of their own
+    free = group < 0
+    rest = components(n, pairs[free[pairs[:, 0]] & free[pairs[:, 1]]])
+    roots, counts = np.unique(rest[free], return_counts=True)
+    for root, count in zip(roots, counts, strict=True):
+        if count >= MIN_OBJECT_POINTS:
+            group[free & (rest == root)] = len(seeds)
+            seeds.append(-1)
+
+    objects = []
+    for g, part in enumerate(seeds):
+        members = np.flatnonzero(group == g)
+        if len(members) < MIN_OBJECT_POINTS:
+            continue
+        q = level[idx[members]]
+        theta = _yaw(R.T @ cuboids[part].rotation) if part >= 0 else _principal_yaw(q[:, :2])
+        Y = _yaw_matrix(theta)
+        local = q @ Y
+        lo, hi = local.min(0) - voxel_m / 2, local.max(0) + voxel_m / 2
+        if lo[2] < floor_z + FLOOR_TOUCH * voxel_m:
+            lo[2] = floor_z
+        lo[2] = max(lo[2], floor_z)
+        rotation = R @ Y
+        center = rotation @ ((lo + hi) / 2)
+        parts = sorted({int(p) for p in lab[members] if p >= 0 and cuboids[int(p)].kind == "object"})
+        if part >= 0 and part not in parts:
+            parts = sorted({*parts, part})
+        box = Cuboid(center, (hi - lo) / 2, rotation, kind="object")
+        objects.append(SceneObject(box, tuple(parts), len(members)))
+    objects.sort(key=lambda o: -o.points)
+    return objects

@@ -1,0 +1,95 @@
+"""Whole objects from a fitted room (cuboidcli.fitting.objects): legs join their top, one cuboid over two
+tables gives two objects, points no cuboid explains form their own, the shell stays out."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from cuboidcli.cuboid import Cuboid
+from cuboidcli.fitting.objects import group_objects, level_frame
+
+VOXEL = 0.035
+
+
+def _grid(lo, hi, step=VOXEL):
+    spans = zip(lo, hi, strict=True)
+    axes = [np.arange(a, b + 1e-9, step) if b - a > 1e-9 else np.array([a]) for a, b in spans]
+    return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
+
+
+def _table(x0, y0, w=1.0, d=0.6, h=0.75):
+    top = _grid((x0, y0, h), (x0 + w, y0 + d, h))
+    legs = np.concatenate(
+        [
+            _grid((x, y, 0.05), (x, y, h - VOXEL))
+            for x in (x0 + 0.02, x0 + w - 0.02)
+            for y in (y0 + 0.02, y0 + d - 0.02)
+        ]
+    )
+    return top, legs
+
+
+def _room():
+    """A floor (cuboid 0), a wall (1) with a picture-less surface, two tables whose tops one cuboid (2)
+    explains, and a bag (unexplained points) on the floor."""
+    floor = _grid((0, 0, 0), (4, 4, 0))
+    wall = _grid((0, 4, 0.1), (4, 4, 2.5))
+    top_a, legs_a = _table(0.5, 0.5)
+    top_b, legs_b = _table(2.5, 0.5)
+    bag = _grid((1.5, 2.5, 0.06), (1.8, 2.7, 0.4))
+    pts = np.concatenate([floor, wall, top_a, legs_a, top_b, legs_b, bag])
+    labels = np.concatenate(
+        [np.zeros(len(floor)), np.ones(len(wall)), np.full(len(top_a), 2), np.full(len(legs_a), -1),
+         np.full(len(top_b), 2), np.full(len(legs_b), -1), np.full(len(bag), -1)]
+    ).astype(np.int32)  # fmt: skip
+    cuboids = [
+        Cuboid([2, 2, -0.02], [2, 2, 0.02], np.eye(3), kind="floor"),
+        Cuboid([2, 4.02, 1.3], [2, 0.02, 1.2], np.eye(3), kind="wall"),
+        Cuboid([2.0, 0.8, 0.75], [1.5, 0.3, 0.005], np.eye(3), kind="object"),  # over both tables
+    ]
+    return pts, labels, cuboids
+
+
+def _extent(box: Cuboid):
+    corners = box.corners()
+    return corners.min(0), corners.max(0)
+
+
+def test_tables_stand_on_their_legs_and_the_bag_is_an_object():
+    pts, labels, cuboids = _room()
+    objects = group_objects(pts, labels, cuboids, np.array([0.0, 0.0, 1.0]), VOXEL)
+    assert len(objects) == 3
+    tables = sorted((o for o in objects if o.cuboids == (2,)), key=lambda o: o.box.center[0])
+    assert len(tables) == 2
+    for table, x0 in zip(tables, (0.5, 2.5), strict=True):
+        lo, hi = _extent(table.box)
+        np.testing.assert_allclose(lo, [x0 - VOXEL / 2, 0.5 - VOXEL / 2, 0.0], atol=1e-6)
+        np.testing.assert_allclose(hi, [x0 + 1.0 + VOXEL / 2, 1.1 + VOXEL / 2, 0.75 + VOXEL / 2], atol=0.03)
+    (bag,) = [o for o in objects if not o.cuboids]
+    lo, hi = _extent(bag.box)
+    assert lo[2] == 0.0 and abs(hi[2] - 0.4) < 0.03  # stands on the floor
+    assert abs(lo[0] - 1.5) < 0.03 and abs(hi[1] - 2.7) < 0.03
+    for o in objects:  # nothing of the wall (y = 4) or below the floor
+        lo, hi = _extent(o.box)
+        assert hi[1] < 3.0 and lo[2] >= 0.0
+
+
+def test_any_up_direction_gives_the_same_objects():
+    pts, labels, cuboids = _room()
+    turn = level_frame(np.array([0.0, -1.0, 0.0]))  # z up -> -y up
+    moved = [Cuboid(turn @ c.center, c.half_size, turn @ c.rotation, kind=c.kind) for c in cuboids]
+    a = group_objects(pts, labels, cuboids, np.array([0.0, 0.0, 1.0]), VOXEL)
+    b = group_objects(pts @ turn.T, labels, moved, turn[:, 2], VOXEL)
+    assert [o.points for o in a] == [o.points for o in b]
+    for oa, ob in zip(a, b, strict=True):
+        np.testing.assert_allclose(turn @ oa.box.center, ob.box.center, atol=1e-6)
+        np.testing.assert_allclose(np.sort(oa.box.half_size), np.sort(ob.box.half_size), atol=1e-6)
+
+
+def test_small_pieces_and_empty_rooms():
+    pts, labels, cuboids = _room()
+    assert group_objects(pts[:0], labels[:0], cuboids, np.array([0, 0, 1.0]), VOXEL) == []
+    only_shell = (labels == 0) | (labels == 1)
+    assert group_objects(pts[only_shell], labels[only_shell], cuboids, np.array([0, 0, 1.0]), VOXEL) == []
+    few = np.array([[1.0, 1.0, 0.5], [1.03, 1.0, 0.5]])
+    assert group_objects(few, np.array([-1, -1]), cuboids, np.array([0, 0, 1.0]), VOXEL) == []
