@@ -163,6 +163,7 @@ def figure(
                 hoverinfo="skip",
             )
         )
+    _add_objects(fig, result, pose)
     if result.frame == "world":  # a room: no single camera; look from above one corner
         return _layout(fig, {"x": -1.2, "y": -1.2, "z": 1.0}, "world, z up (levelled: the room's up)")
     cam = pose[:3, 3]
@@ -182,6 +183,34 @@ def figure(
     eye = {"x": -1.6 * fwd[0], "y": -1.6 * fwd[1], "z": 0.9}  # behind and above the input camera
     frame = "world, z up (levelled by gravity)" if has_gravity else "world (no gravity: camera-aligned)"
     return _layout(fig, eye, frame)
+
+
+def _add_objects(fig, result, pose: np.ndarray) -> None:
+    """A room's whole-object boxes (the JSON's ``objects``) as dashed black edges, one legend entry that
+    shows or hides them all."""
+    objects = result.extras.get("objects") or []
+    if not objects:
+        return
+    go = import_plotly()
+    ex, ey, ez = [], [], []
+    for o in objects:
+        rot = pose[:3, :3] @ np.asarray(o["rotation"], dtype=np.float64)
+        center = pose[:3, :3] @ np.asarray(o["center"], dtype=np.float64) + pose[:3, 3]
+        corners = box_corners(center, np.asarray(o["half_size"], dtype=np.float64), rot)
+        for a, b in BOX_EDGES:
+            for axis, out in zip(range(3), (ex, ey, ez), strict=True):
+                out += [corners[a, axis], corners[b, axis], None]
+    fig.add_trace(
+        go.Scatter3d(
+            x=ex,
+            y=ey,
+            z=ez,
+            mode="lines",
+            line={"color": "black", "width": 3, "dash": "dash"},
+            name=f"objects ({len(objects)})",
+            hoverinfo="skip",
+        )
+    )
 
 
 def _layout(fig, eye: dict, frame: str):
@@ -290,8 +319,9 @@ def html_page(
     cam = result.camera
     total = result.timing_s.get("total") if isinstance(result.timing_s, dict) else None
     source = result.input.get("depth") or result.input.get("rgb") or result.input.get("path") or ""
+    n_objects = len(result.extras.get("objects") or [])
     info = [
-        f"{len(result.cuboids)} cuboids",
+        f"{len(result.cuboids)} cuboids" + (f", {n_objects} object{'s' * (n_objects != 1)} (dashed)" if n_objects else ""),
         "a room, in its own frame" if room else f"camera {cam.width}x{cam.height}, fx {cam.fx:.1f}",
         "gravity: levelled, z up" if has_gravity else "no gravity estimate",
     ]

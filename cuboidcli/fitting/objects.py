@@ -46,6 +46,8 @@ GROW_LIMIT_M = 1.5
 SHELL_CLEARANCE = 1.5
 #: A level object cuboid at most this thick is a top: its object takes nothing above it (m).
 TOP_SLAB_M = 0.1
+#: A group whose box lies at least this much (share of its volume) inside a larger group's box joins it.
+MERGE_OVERLAP = 0.9
 #: A box whose lowest point is within this many voxels of the floor is extended down to it.
 FLOOR_TOUCH = 3.0
 
@@ -167,25 +169,52 @@ def group_objects(
             group[free & (rest == root)] = len(seeds)
             seeds.append(-1)
 
-    objects = []
-    for g, part in enumerate(seeds):
-        members = np.flatnonzero(group == g)
-        if len(members) < MIN_OBJECT_POINTS:
-            continue
-        q = level[idx[members]]
-        theta = _yaw(R.T @ cuboids[part].rotation) if part >= 0 else _principal_yaw(q[:, :2])
-        Y = _yaw_matrix(theta)
-        local = q @ Y
+    # each group's upright box in its own heading; a group mostly inside another's box joins it
+    heights = level[idx]
+
+    def heading(g: int) -> float:
+        part = seeds[g]
+        if part >= 0:
+            return _yaw(R.T @ cuboids[part].rotation)
+        return _principal_yaw(heights[group == g][:, :2])
+
+    def extent(members: np.ndarray, theta: float) -> tuple[np.ndarray, np.ndarray]:
+        local = heights[members] @ _yaw_matrix(theta)
         lo, hi = local.min(0) - voxel_m / 2, local.max(0) + voxel_m / 2
         if lo[2] < floor_z + FLOOR_TOUCH * voxel_m:
             lo[2] = floor_z
         lo[2] = max(lo[2], floor_z)
-        rotation = R @ Y
+        return lo, hi
+
+    groups = {g: np.flatnonzero(group == g) for g in range(len(seeds))}
+    groups = {g: m for g, m in groups.items() if len(m) >= MIN_OBJECT_POINTS}
+    headings = {g: heading(g) for g in groups}
+    merged = True
+    while merged:
+        merged = False
+        order = sorted(groups, key=lambda g: -len(groups[g]))
+        boxes = {g: extent(groups[g], headings[g]) for g in order}
+        for i, a in enumerate(order):
+            for b in order[i + 1 :]:
+                lo_a, hi_a = boxes[a]
+                lo_b, hi_b = extent(groups[b], headings[a])  # the smaller group in a's heading
+                common = np.prod(np.clip(np.minimum(hi_a, hi_b) - np.maximum(lo_a, lo_b), 0.0, None))
+                smaller = min(np.prod(hi_a - lo_a), np.prod(hi_b - lo_b))
+                if common >= MERGE_OVERLAP * smaller:
+                    groups[a] = np.concatenate([groups[a], groups.pop(b)])
+                    merged = True
+                    break
+            if merged:
+                break
+
+    objects = []
+    for g, members in groups.items():
+        lo, hi = extent(members, headings[g])
+        rotation = R @ _yaw_matrix(headings[g])
         center = rotation @ ((lo + hi) / 2)
-        parts = sorted({int(p) for p in lab[members] if p >= 0 and cuboids[int(p)].kind == "object"})
-        if part >= 0 and part not in parts:
-            parts = sorted({*parts, part})
+        parts = {int(p) for p in lab[members] if p >= 0 and cuboids[int(p)].kind == "object"}
+        parts |= {seeds[h] for h in range(len(seeds)) if seeds[h] >= 0 and np.any(group[members] == h)}
         box = Cuboid(center, (hi - lo) / 2, rotation, kind="object")
-        objects.append(SceneObject(box, tuple(parts), len(members)))
+        objects.append(SceneObject(box, tuple(sorted(parts)), len(members)))
     objects.sort(key=lambda o: -o.points)
     return objects

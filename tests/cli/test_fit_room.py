@@ -33,7 +33,12 @@ def test_a_point_cloud_gives_a_world_frame_result_and_its_outputs(tmp_path):
     kinds = [c["kind"] for c in d["cuboids"]]
     assert "floor" in kinds and kinds.count("wall") >= 3
     assert np.allclose(np.asarray(d["world_from_input"])[:3, :3] @ d["up"]["up"], [0, 0, 1], atol=1e-6)
-    assert d["timing_s"]["total"] > 0 and "load" in d["timing_s"]
+    assert d["timing_s"]["total"] > 0 and "load" in d["timing_s"] and "objects" in d["timing_s"]
+    # the cabinet as one whole object, made of object cuboids, standing on the floor
+    (cabinet,) = [o for o in d["objects"] if o["cuboids"]]
+    assert set(cabinet["cuboids"]) <= {i for i, k in enumerate(kinds) if k == "object"}
+    assert sorted(round(2 * v, 1) for v in cabinet["half_size"]) == [0.7, 1.0, 1.3]
+    assert abs(cabinet["center"][2] - cabinet["half_size"][2]) < 0.05
     res = read_result(out)  # the schema takes a world result without a camera
     assert res.frame == "world" and res.camera is None and len(res.cuboids) == len(kinds)
     for name in ("room.glb", "room_points.ply", "room_cuboids.ply"):
@@ -125,6 +130,7 @@ def test_a_bare_scan_opens_in_the_viewer_and_the_simulators(tmp_path):
     assert r.exit_code == 0, r.output
     page = (tmp_path / "room.html").read_text()
     assert "a room, in its own frame" in page and "points (" in page
+    assert "1 object (dashed)" in page and "objects (1)" in page
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "room_mjcf.xml"))
     d = json.loads(out.read_text())
     assert model.ngeom == len(d["cuboids"]) and model.ncam == 0

@@ -207,3 +207,23 @@ def test_seen_from_inside_a_room_a_wall_is_a_wall_and_a_screen_is_not():
     screen = Cuboid(np.array([2.5, 1.5, 1.0]), np.array([0.01, 0.3, 0.2]), np.eye(3))
     hidden = (pts[:, 0] > 2.5) & (np.abs(pts[:, 1] - 1.5) < 0.45) & (np.abs(pts[:, 2] - 1.0) < 0.35)
     assert cuboid_kind(pts[~hidden], screen, down, inside) == "object"
+
+
+
+def test_a_low_upright_slab_is_furniture_not_a_wall():
+    """The back of a sofa has the room on one side like a wall, but its top is far below the room's."""
+    from cuboidcli.fitting.scene import WALL_TOP_GAP_M, low_walls_are_furniture
+
+    points = np.random.default_rng(0).uniform([0, 0, 0], [4, 3, 2.5], (2000, 3))
+    wall = Cuboid([4.0, 1.5, 1.25], [0.005, 1.5, 1.25], np.eye(3), kind="wall")
+    back = Cuboid([3.5, 1.5, 0.45], [0.005, 1.2, 0.45], np.eye(3), kind="wall")
+    high = Cuboid([3.0, 1.5, 1.4], [0.005, 0.5, 0.5], np.eye(3), kind="wall")  # top 0.6 m below 2.5 m
+    just = Cuboid([2.0, 1.5, 1.6], [0.005, 0.5, 0.45], np.eye(3), kind="wall")  # top 0.45 m below
+    table = Cuboid([1.0, 1.0, 0.7], [0.4, 0.3, 0.01], np.eye(3))
+    cuboids = [wall, back, high, just, table]
+    low_walls_are_furniture(cuboids, points, np.array([0.0, 0.0, 1.0]))
+    assert [c.kind for c in cuboids] == ["wall", "object", "object", "wall", "object"]
+    assert 0.45 < WALL_TOP_GAP_M < 0.6
+    turned = Cuboid([0.45, 1.5, 3.5], [0.45, 1.2, 0.005], np.eye(3), kind="wall")  # up is +x here
+    low_walls_are_furniture([turned], points[:, ::-1], np.array([1.0, 0.0, 0.0]))
+    assert turned.kind == "object"
