@@ -320,8 +320,9 @@ def html_page(
     total = result.timing_s.get("total") if isinstance(result.timing_s, dict) else None
     source = result.input.get("depth") or result.input.get("rgb") or result.input.get("path") or ""
     n_objects = len(result.extras.get("objects") or [])
+    objects = f", {n_objects} object{'s' * (n_objects != 1)} (dashed)" if n_objects else ""
     info = [
-        f"{len(result.cuboids)} cuboids" + (f", {n_objects} object{'s' * (n_objects != 1)} (dashed)" if n_objects else ""),
+        f"{len(result.cuboids)} cuboids{objects}",
         "a room, in its own frame" if room else f"camera {cam.width}x{cam.height}, fx {cam.fx:.1f}",
         "gravity: levelled, z up" if has_gravity else "no gravity estimate",
     ]
