@@ -9,7 +9,7 @@ groups, after the fit, without changing the cuboids:
 1. The candidate points are the fitting points that are not the room's shell: not inliers of a floor, wall
    or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of one, and above the floor.
 2. Seeds: the inliers of each object cuboid, split into the pieces that touch (neighbours within
-   :data:`REACH` voxel cells). One cuboid laid over two tables gives two seeds; pieces of fewer than
+   :data:`SEED_REACH` voxel cells). One cuboid laid over two tables gives two seeds; pieces of fewer than
    :data:`MIN_SEED_POINTS` points are no seed.
 3. Every other candidate point joins the seed nearest to it through touching points (a breadth-first
    growth, at most :data:`GROW_LIMIT_M`): legs join their table top, a chair's back its seat.
@@ -36,6 +36,9 @@ from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
 #: Points touch when their voxel cells are at most this many cells apart along every axis (2 bridges the
 #: one-voxel gaps of thin legs and sparse far surfaces).
 REACH = 2
+#: A cuboid's inliers are split into pieces whose points touch more closely: cells at most this many apart
+#: (two table tops a hand apart are two pieces).
+SEED_REACH = 1
 #: A touching piece of a cuboid's inliers seeds an object from this many fitting points on.
 MIN_SEED_POINTS = 8
 #: A group of points (seeded or not) is an object from this many fitting points on.
@@ -142,8 +145,9 @@ def group_objects(
     pairs = neighbour_pairs(points[idx], voxel_m, REACH)
 
     # seeds: touching pieces of each object cuboid's inliers
-    same = (lab[pairs[:, 0]] == lab[pairs[:, 1]]) & (lab[pairs[:, 0]] >= 0)
-    piece = components(n, pairs[same])
+    close = neighbour_pairs(points[idx], voxel_m, SEED_REACH)
+    same = (lab[close[:, 0]] == lab[close[:, 1]]) & (lab[close[:, 0]] >= 0)
+    piece = components(n, close[same])
     group = np.full(n, -1, dtype=np.int64)
     seeds: list[int] = []  # the cuboid of each group; -1 for a group of unexplained points
     roots, counts = np.unique(piece, return_counts=True)

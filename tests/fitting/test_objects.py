@@ -93,3 +93,21 @@ def test_small_pieces_and_empty_rooms():
     assert group_objects(pts[only_shell], labels[only_shell], cuboids, np.array([0, 0, 1.0]), VOXEL) == []
     few = np.array([[1.0, 1.0, 0.5], [1.03, 1.0, 0.5]])
     assert group_objects(few, np.array([-1, -1]), cuboids, np.array([0, 0, 1.0]), VOXEL) == []
+
+
+def test_two_tables_a_hand_apart_are_two_objects(monkeypatch):
+    """One cuboid over two table tops 7 cm apart: its inliers are split where they do not touch closely
+    (SEED_REACH), though the growth would bridge that gap (REACH)."""
+    import cuboidcli.fitting.objects as objects_module
+
+    top_a, legs_a = _table(0.5, 0.5)
+    top_b, legs_b = _table(1.57, 0.5)
+    pts = np.concatenate([top_a, legs_a, top_b, legs_b])
+    labels = np.concatenate([np.zeros(len(top_a)), np.full(len(legs_a), -1), np.zeros(len(top_b)),
+                             np.full(len(legs_b), -1)]).astype(np.int32)  # fmt: skip
+    cuboids = [Cuboid([1.53, 0.8, 0.75], [1.05, 0.3, 0.005], np.eye(3))]
+    up = np.array([0.0, 0.0, 1.0])
+    two = group_objects(pts, labels, cuboids, up, VOXEL)
+    assert len(two) == 2 and all(o.cuboids == (0,) for o in two)
+    monkeypatch.setattr(objects_module, "SEED_REACH", objects_module.REACH)
+    assert len(group_objects(pts, labels, cuboids, up, VOXEL)) == 1
