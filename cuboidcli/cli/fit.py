@@ -28,6 +28,7 @@ from cuboidcli.cli.scale_options import (
     skip_existing_option,
     workers_option,
 )
+from cuboidcli.fitting.scene import SceneConfig
 from cuboidcli.folder import FolderJob, fitter_for
 from cuboidcli.weights import DEFAULTS as WEIGHTS
 
@@ -265,7 +266,10 @@ def fit(
         show_default="estimated: the room's axis nearest the cameras' up, y for glTF, z otherwise",
     ),
     voxel: float = typer.Option(
-        None, "--voxel", help="A room: side of the voxels whose means are fitted (m).", show_default="0.035"
+        None,
+        "--voxel",
+        help="A room: side of the voxels whose means are fitted (m).",
+        show_default=str(SceneConfig.voxel_m),
     ),
     workers: int = workers_option(),
     ray: bool = ray_option(),
