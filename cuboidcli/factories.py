@@ -100,7 +100,7 @@ def make_depth_estimator(
 ):
     """The estimator for a ``--depth-model`` option:
 
-    - None: the built-in network (``models/depth_v3.pt`` or ``$CUBOIDS_DEPTH_WEIGHTS``); a ``.pt`` file: a
+    - None: the built-in network (``models/depth_v4.pt`` or ``$CUBOIDS_DEPTH_WEIGHTS``); a ``.pt`` file: a
       checkpoint of the built-in network (both metric: ``kind`` None or "metric", no scale);
     - an ``.onnx`` file, with its ``kind`` (None: the preset's, else metric), alignment and the ``onnx_*``
       conventions (:class:`cuboidcli.depth.estimator.OnnxDepthEstimator`, presets in
@@ -181,7 +181,7 @@ class DepthModelOptions:
     hashable: :func:`depth_estimator` builds one estimator per distinct options."""
 
     model: str | None = None
-    """None = the built-in network (models/depth_v3.pt); a .pt checkpoint, a user's .onnx model, a
+    """None = the built-in network (models/depth_v4.pt); a .pt checkpoint, a user's .onnx model, a
     Hugging Face model id ``hf:owner/name`` or a folder saved with ``save_pretrained``."""
     kind: str | None = None
     """None = what the model predicts (built-in: metric; ONNX: the preset's, else metric; Hugging Face: its

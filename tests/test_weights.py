@@ -17,6 +17,7 @@ from cuboidcli.weights import MODELS_DIR, checkpoint_kind, default_weights_dir, 
         ("solver_v2.pt", "solver"),
         ("depth_v1.pt", "depth"),
         ("depth_v3.pt", "depth"),
+        ("depth_v4.pt", "depth"),
     ],
 )
 def test_shipped_files_are_recognised(name, kind):
@@ -58,7 +59,7 @@ def test_default_bundles():
     assert default_weights_dir("numerical") is None  # top-level models/
     assert default_weights_dir("neural") == MODELS_DIR / "neural"
     assert default_weights_dir("numerical", rgb=True, builtin_depth=False) is None
-    assert weights.default_depth_weights() == MODELS_DIR / "depth_v3.pt"
+    assert weights.default_depth_weights() == MODELS_DIR / "depth_v4.pt"
 
 
 def test_documented_models_paths_resolve_to_the_shipped_files(tmp_path, monkeypatch):
@@ -111,7 +112,7 @@ def test_defaults_and_their_environment_overrides(tmp_path, monkeypatch):
         monkeypatch.delenv(weights.ENV[kind], raising=False)
     assert weights.default_path("sampler") == MODELS_DIR / "sampler_v2.pt"
     assert weights.default_path("solver") == MODELS_DIR / "solver_v2.pt"
-    assert weights.default_path("depth") == weights.default_depth_weights() == MODELS_DIR / "depth_v3.pt"
+    assert weights.default_path("depth") == weights.default_depth_weights() == MODELS_DIR / "depth_v4.pt"
     assert all(weights.resolve(kind) == weights.default_path(kind) for kind in weights.KINDS)
     monkeypatch.setenv("CUBOIDS_SOLVER_WEIGHTS", str(tmp_path / "mine.pt"))
     assert weights.resolve("solver", None) == tmp_path / "mine.pt"

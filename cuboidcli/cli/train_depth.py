@@ -130,7 +130,7 @@ def train_depth_cmd(
 
     check_training_paths(data, resume, out)
     if init is not None and resume is None and not Path(init).is_file():
-        fail(f"--init {init}: no such weights file (give a depth network's .pt, e.g. models/depth_v3.pt)")
+        fail(f"--init {init}: no such weights file (give a depth network's .pt, e.g. models/depth_v4.pt)")
     if resume is None and (out / "last.pt").is_file():
         fail(
             f"--out {out} already holds a training run; continue it with --resume {out / 'last.pt'} "

@@ -6,7 +6,7 @@ metres, float32 ``(H, W)`` at the image's full resolution; 0 marks pixels withou
 fitting pipeline subsamples this map to its fitting grid (every 8th pixel) itself.
 
 - :class:`BuiltinDepthEstimator`: the project's own network (:mod:`cuboidcli.nets.depth`), from a weights
-  file or a loaded net (the default file, ``models/depth_v3.pt``, is the weights registry's:
+  file or a loaded net (the default file, ``models/depth_v4.pt``, is the weights registry's:
   :func:`cuboidcli.factories.make_depth_estimator` builds an estimator for a ``--depth-model`` value).
 - :class:`OnnxDepthEstimator`: a user's monocular network exported to ONNX. Expected tensors:
 
