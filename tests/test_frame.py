@@ -297,8 +297,9 @@ def test_same_settings_compares_a_saved_result_with_a_configuration(tmp_path):
 
 
 def test_dropping_depth_edges_leaves_out_the_estimates_pixels_on_discontinuities():
-    """--drop-depth-edges: the estimate from a real NYU photo loses a few per cent of its pixels (set to 0,
-    counted in meta); by default nothing is dropped."""
+    """--drop-depth-edges: the estimate from a real NYU photo loses some of its pixels (set to 0, counted in
+    meta: 0.26 % with the smooth depth_v4, 4 % of the real frames with depth_v3); by default nothing is
+    dropped."""
     from tests.conftest import SHARED_DATA
 
     photo = SHARED_DATA / "nyu" / "basement_00050_rgb.jpg"
@@ -308,7 +309,7 @@ def test_dropping_depth_edges_leaves_out_the_estimates_pixels_on_discontinuities
     dropped = load_frame(None, photo, preset="nyu", depth_model=DepthModelOptions(drop_edges=True))
     assert "depth_edges_dropped" not in kept.meta and (kept.depth_m > 0).all()
     share = dropped.meta["depth_edges_dropped"]
-    assert 0.005 < share < 0.2
+    assert 0.001 < share < 0.2
     assert (dropped.depth_m == 0).mean() == pytest.approx(share, abs=1e-3)
     same = dropped.depth_m > 0
     assert np.array_equal(dropped.depth_m[same], kept.depth_m[same])

@@ -146,23 +146,8 @@ def figure(
                 hovertemplate=f"{html.escape(name)}<extra></extra>",
             )
         )
-        ex, ey, ez = [], [], []
-        for a, b in BOX_EDGES:
-            for axis, out in zip(range(3), (ex, ey, ez), strict=True):
-                out += [corners[a, axis], corners[b, axis], None]
-        fig.add_trace(
-            go.Scatter3d(
-                x=ex,
-                y=ey,
-                z=ez,
-                mode="lines",
-                line={"color": _rgb_css(color), "width": 5},
-                name=name,
-                legendgroup=name,
-                showlegend=False,
-                hoverinfo="skip",
-            )
-        )
+        line = {"color": _rgb_css(color), "width": 5}
+        fig.add_trace(edge_lines([corners], line, name=name, legendgroup=name, showlegend=False))
     _add_objects(fig, result, pose)
     if result.frame == "world":  # a room: no single camera; look from above one corner
         return _layout(fig, {"x": -1.2, "y": -1.2, "z": 1.0}, "world, z up (levelled: the room's up)")
@@ -185,32 +170,31 @@ def figure(
     return _layout(fig, eye, frame)
 
 
+def edge_lines(boxes: list[np.ndarray], line: dict, **trace):
+    """One plotly line trace of the twelve edges of each box (corners (8, 3) in :func:`box_corners`'s
+    order), separated by gaps; ``trace`` goes to the trace (name, legend group...)."""
+    go = import_plotly()
+    ex, ey, ez = [], [], []
+    for corners in boxes:
+        for a, b in BOX_EDGES:
+            for axis, out in zip(range(3), (ex, ey, ez), strict=True):
+                out += [corners[a, axis], corners[b, axis], None]
+    return go.Scatter3d(x=ex, y=ey, z=ez, mode="lines", line=line, hoverinfo="skip", **trace)
+
+
 def _add_objects(fig, result, pose: np.ndarray) -> None:
     """A room's whole-object boxes (the JSON's ``objects``) as dashed black edges, one legend entry that
     shows or hides them all."""
     objects = result.extras.get("objects") or []
     if not objects:
         return
-    go = import_plotly()
-    ex, ey, ez = [], [], []
+    boxes = []
     for o in objects:
         rot = pose[:3, :3] @ np.asarray(o["rotation"], dtype=np.float64)
         center = pose[:3, :3] @ np.asarray(o["center"], dtype=np.float64) + pose[:3, 3]
-        corners = box_corners(center, np.asarray(o["half_size"], dtype=np.float64), rot)
-        for a, b in BOX_EDGES:
-            for axis, out in zip(range(3), (ex, ey, ez), strict=True):
-                out += [corners[a, axis], corners[b, axis], None]
-    fig.add_trace(
-        go.Scatter3d(
-            x=ex,
-            y=ey,
-            z=ez,
-            mode="lines",
-            line={"color": "black", "width": 3, "dash": "dash"},
-            name=f"objects ({len(objects)})",
-            hoverinfo="skip",
-        )
-    )
+        boxes.append(box_corners(center, np.asarray(o["half_size"], dtype=np.float64), rot))
+    line = {"color": "black", "width": 3, "dash": "dash"}
+    fig.add_trace(edge_lines(boxes, line, name=f"objects ({len(objects)})"))
 
 
 def _layout(fig, eye: dict, frame: str):
