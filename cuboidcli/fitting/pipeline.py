@@ -47,7 +47,8 @@ class FitInfo:
     gains: list[float] = field(default_factory=list)
     """Inlier-count gain of each selected cuboid, in selection order."""
     theta: float = 0.0
-    """Stopping threshold used (9 ln n by default)."""
+    """Stopping threshold used: ``theta`` if given, else k ln n with k = ``theta_log_factor`` (6 by default;
+    the paper's 9)."""
     n_points: int = 0
     """Valid fitting points n."""
     iterations: int = 0
