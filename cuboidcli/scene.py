@@ -200,6 +200,15 @@ def scene_result(
     return FitResult(camera, out, settings, info.timing_s, inputs, extras, frame="world")
 
 
+def object_boxes(info: SceneInfo) -> list[Cuboid]:
+    """The room's whole objects as boxes (kind ``object``), largest first; ``extras["cuboids"]`` holds the
+    indices of the cuboids each is made of."""
+    return [
+        Cuboid(o.box.center, o.box.half_size, o.box.rotation, extras={"cuboids": list(o.cuboids)})
+        for o in info.objects
+    ]
+
+
 def camera_cuboids(cuboids: list[Cuboid], world_from_camera: np.ndarray) -> list[Cuboid]:
     """World cuboids seen from a camera at ``world_from_camera`` (4, 4): the same boxes in its OpenCV
     coordinates."""
@@ -246,9 +255,11 @@ def write_scene_outputs(
         pts, pc = (cloud.points, colors) if with_points else (None, None)
         meta = {"schema": "cuboids/1", "frame": "world", "n_cuboids": len(result.cuboids)}
         path = Path(f"{stem}.glb")
-        written.append(
-            write_glb(path, result.cuboids, points=pts, point_colors=pc, metadata=meta, up=info.up.up)
-        )
+        glb_file = write_glb(
+            path, result.cuboids, points=pts, point_colors=pc, metadata=meta, up=info.up.up,
+            objects=object_boxes(info),
+        )  # fmt: skip
+        written.append(glb_file)
     if ply:
         written.append(write_point_ply(Path(f"{stem}_points.ply"), cloud.points, colors))
         written.append(write_cuboid_ply(Path(f"{stem}_cuboids.ply"), result.cuboids))
@@ -308,10 +319,7 @@ class SceneResult:
     def objects(self) -> list[Cuboid]:
         """One upright box per object of the room (a table with its legs, a chair with its back), largest
         first; ``extras["cuboids"]`` holds the indices of the cuboids that make it up."""
-        return [
-            Cuboid(o.box.center, o.box.half_size, o.box.rotation, extras={"cuboids": list(o.cuboids)})
-            for o in self.info.objects
-        ]
+        return object_boxes(self.info)
 
     def save(self, path: str | Path, **outputs) -> list[Path]:
         """Write the JSON to ``path`` and the outputs asked for beside it (``glb``, ``ply``, ``overlay``,

@@ -68,6 +68,10 @@ def node_extras(cuboid: Cuboid, index: int) -> dict:
     }
 
 
+#: Opacity of a room's whole-object boxes: the cuboids inside them stay visible.
+OBJECT_ALPHA = 0.2
+
+
 def build_scene(
     cuboids: list[Cuboid],
     points: np.ndarray | None = None,
@@ -75,8 +79,13 @@ def build_scene(
     alpha: float = 1.0,
     metadata: dict | None = None,
     up: np.ndarray | None = None,
+    objects: list[Cuboid] | None = None,
 ):
     """A trimesh Scene with nodes ``cuboid_00``... and, if ``points`` (N, 3) m is given, a ``points`` node.
+
+    ``objects``: a room's whole-object boxes, as translucent grey nodes ``whole_object_00``...; each node's
+    extras hold the box's parameters and ``cuboids``, the indices of the cuboids it is made of (from the
+    box's ``extras["cuboids"]``).
 
     ``points`` are in OpenCV camera coordinates; ``point_colors`` (N, 3) uint8 RGB (grey if None).
     ``alpha`` in (0, 1] is the boxes' opacity (glTF BLEND mode below 1). With ``up`` (3,), the up
@@ -87,7 +96,6 @@ def build_scene(
 
     scene = trimesh.Scene(metadata=dict(metadata or {}))
     for k, cub in enumerate(cuboids):
-        vertices, faces, normals = flat_box(cub.half_size)
         rgb = np.array(palette_color(k), dtype=np.float64) / 255.0
         material = PBRMaterial(
             name=f"{node_name(cuboids, k)}_material",
@@ -97,19 +105,30 @@ def build_scene(
             alphaMode="BLEND" if alpha < 1.0 else "OPAQUE",
             doubleSided=alpha < 1.0,
         )
-        mesh = trimesh.Trimesh(
-            vertices=vertices,
-            faces=faces,
-            vertex_normals=normals,
-            process=False,
-            visual=trimesh.visual.TextureVisuals(material=material),
-        )
         scene.add_geometry(
-            mesh,
+            _box_mesh(cub, material),
             node_name=node_name(cuboids, k),
             geom_name=node_name(cuboids, k),
             transform=node_matrix(cub, up),
             metadata=node_extras(cub, k),
+        )
+    for k, box in enumerate(objects or []):
+        name = f"whole_object_{k:02d}"
+        material = PBRMaterial(
+            name=f"{name}_material",
+            baseColorFactor=[0.6, 0.6, 0.6, OBJECT_ALPHA],
+            metallicFactor=0.0,
+            roughnessFactor=0.9,
+            alphaMode="BLEND",
+            doubleSided=True,
+        )
+        extras = {"id": k, "cuboids": [int(i) for i in box.extras.get("cuboids", [])]}
+        scene.add_geometry(
+            _box_mesh(box, material),
+            node_name=name,
+            geom_name=name,
+            transform=node_matrix(box, up),
+            metadata={**extras, **box.parameters_json()},
         )
     if points is not None and len(points) > 0:
         pts = np.asarray(points, dtype=np.float64).reshape(-1, 3)
@@ -130,6 +149,20 @@ def build_scene(
             metadata={"frame": "vertices are glTF coordinates (y up, z backward), metres"},
         )
     return scene
+
+
+def _box_mesh(box: Cuboid, material):
+    """A flat-shaded trimesh of ``box`` in its own frame (its node's transform places it), in ``material``."""
+    import trimesh
+
+    vertices, faces, normals = flat_box(box.half_size)
+    return trimesh.Trimesh(
+        vertices=vertices,
+        faces=faces,
+        vertex_normals=normals,
+        process=False,
+        visual=trimesh.visual.TextureVisuals(material=material),
+    )
 
 
 def _add_camera(tree: dict, camera: Camera, up: np.ndarray | None = None) -> None:
@@ -168,8 +201,10 @@ def write_glb(
     alpha: float = 1.0,
     metadata: dict | None = None,
     up: np.ndarray | None = None,
+    objects: list[Cuboid] | None = None,
 ) -> Path:
-    """Write cuboids (and optionally points (N, 3) m, OpenCV frame) as a GLB file, atomically.
+    """Write cuboids (and optionally points (N, 3) m, OpenCV frame, and a room's whole-object boxes
+    ``objects``, see :func:`build_scene`) as a GLB file, atomically.
 
     With ``camera`` a glTF camera node named ``input_camera`` is added at the origin, so viewers can look
     through the input camera. With ``up`` (the up direction in camera coordinates, from gravity) the scene
@@ -184,7 +219,7 @@ def write_glb(
         meta["frame"] = "glTF levelled by gravity (+Y up) = L * OpenCV camera frame, metres"
         meta["gltf_from_camera"] = [[float(v) for v in row] for row in level_rotation(up)]
     meta.update(metadata or {})
-    scene = build_scene(cuboids, points, point_colors, alpha=alpha, metadata=meta, up=up)
+    scene = build_scene(cuboids, points, point_colors, alpha=alpha, metadata=meta, up=up, objects=objects)
     post = None if camera is None else (lambda tree: _add_camera(tree, camera, up))
     data = export_glb(scene, include_normals=True, tree_postprocessor=post)
     return atomic_write(path, lambda p: p.write_bytes(data))

@@ -43,6 +43,12 @@ def test_a_point_cloud_gives_a_world_frame_result_and_its_outputs(tmp_path):
     assert res.frame == "world" and res.camera is None and len(res.cuboids) == len(kinds)
     for name in ("room.glb", "room_points.ply", "room_cuboids.ply"):
         assert (tmp_path / name).stat().st_size > 0
+    import trimesh
+
+    glb = trimesh.load(tmp_path / "room.glb")  # the cabinet's object: a translucent box beside the cuboids
+    assert "whole_object_00" in glb.graph.nodes and len(glb.geometry) == len(kinds) + len(d["objects"])
+    box = glb.geometry["whole_object_00"]
+    assert sorted(np.round(box.extents, 1)) == sorted(round(2 * v, 1) for v in cabinet["half_size"])
 
 
 @pytest.mark.parametrize(
