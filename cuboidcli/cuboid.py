@@ -81,6 +81,10 @@ class Cuboid:
     def volume(self) -> float:
         return float(8.0 * np.prod(self.half_size))
 
+    def top(self, up: np.ndarray) -> float:
+        """The height of the box's highest corner along the unit direction ``up`` (3,)."""
+        return float(self.center @ up + np.abs(self.rotation.T @ up) @ self.half_size)
+
     def parameters_json(self) -> dict:
         """The box's parameters, JSON-safe: centre, half-sizes, rotation, quaternion (wxyz), inlier gain."""
         return {

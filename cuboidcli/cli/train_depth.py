@@ -145,9 +145,11 @@ def train_depth_cmd(
     overrides = set(RESUME_OVERRIDES) - {"max_minutes"}
     if resume is not None:
         overrides |= {name for name in ("epochs", "max_minutes") if given(name)}
-        tuned = ("batch", "lr", "l1_weight", "min_crop", "jitter", "white_balance", "blur", "noise")
-        tuned = (*tuned, "grad_weight")
-        ignored = [name for name in (*tuned, "init", "seed") if given(name)]
+        fixed = (
+            *("batch", "lr", "l1_weight", "min_crop", "jitter", "white_balance", "blur", "noise"),
+            *("grad_weight", "init", "seed"),
+        )
+        ignored = [name for name in fixed if given(name)]
         if ignored:
             options = ", ".join("--" + name.replace("_", "-") for name in ignored)
             _say(f"warning: {options}: ignored with --resume (the checkpoint's values apply)", style="yellow")

@@ -32,6 +32,7 @@ import numpy as np
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
+from cuboidcli.geometry.gravity import level_frame
 
 #: Points touch when their voxel cells are at most this many cells apart along every axis (2 bridges the
 #: one-voxel gaps of thin legs and sparse far surfaces).
@@ -77,16 +78,6 @@ class SceneObject:
         }
 
 
-def level_frame(up: np.ndarray) -> np.ndarray:
-    """(3, 3) a rotation whose third column is ``up`` (unit): world = R @ level."""
-    z = np.asarray(up, dtype=np.float64)
-    z = z / np.linalg.norm(z)
-    a = np.eye(3)[int(np.argmin(np.abs(z)))]
-    x = a - (a @ z) * z
-    x /= np.linalg.norm(x)
-    return np.stack([x, np.cross(z, x), z], 1)
-
-
 def _outside_distance(points: np.ndarray, c: Cuboid) -> np.ndarray:
     """(N,) distance of each point from the solid box ``c`` (0 inside)."""
     local = (points - c.center) @ c.rotation
@@ -123,13 +114,13 @@ def group_objects(
     labels = np.asarray(labels).ravel()
     if len(labels) != len(points):
         raise ValueError(f"{len(labels)} labels for {len(points)} points")
-    R = level_frame(up)
+    R = level_frame(np.asarray(up, dtype=np.float64))  # world = R @ level, its z the room's up
     level = points @ R
     shell = [i for i, c in enumerate(cuboids) if c.kind != "object"]
     floors = [cuboids[i] for i in shell if cuboids[i].kind == "floor"]
     z = R[:, 2]
     if floors:  # the floor's top surface
-        floor_z = max(float(c.center @ z + np.abs(c.rotation.T @ z) @ c.half_size) for c in floors)
+        floor_z = max(c.top(z) for c in floors)
     elif len(points):
         floor_z = float(np.percentile(level[:, 2], 1))
     else:
@@ -161,7 +152,7 @@ def group_objects(
         c = cuboids[part]
         thin = int(np.argmin(c.half_size))
         if c.half_size[thin] <= TOP_SLAB_M / 2 and abs(c.rotation[:, thin] @ z) > math.cos(math.radians(20)):
-            ceiling[g] = float(c.center @ z + np.abs(c.rotation.T @ z) @ c.half_size) + voxel_m
+            ceiling[g] = c.top(z) + voxel_m
     group = grow_labels(group, pairs, max(1, int(GROW_LIMIT_M / voxel_m)), level[idx, 2], ceiling)
 
     # points no seed reached: objects of their own
@@ -174,16 +165,16 @@ def group_objects(
             seeds.append(-1)
 
     # each group's upright box in its own heading; a group mostly inside another's box joins it
-    heights = level[idx]
+    q = level[idx]
 
     def heading(g: int) -> float:
         part = seeds[g]
         if part >= 0:
             return _yaw(R.T @ cuboids[part].rotation)
-        return _principal_yaw(heights[group == g][:, :2])
+        return _principal_yaw(q[group == g][:, :2])
 
     def extent(members: np.ndarray, theta: float) -> tuple[np.ndarray, np.ndarray]:
-        local = heights[members] @ _yaw_matrix(theta)
+        local = q[members] @ _yaw_matrix(theta)
         lo, hi = local.min(0) - voxel_m / 2, local.max(0) + voxel_m / 2
         if lo[2] < floor_z + FLOOR_TOUCH * voxel_m:
             lo[2] = floor_z
@@ -216,8 +207,8 @@ def group_objects(
         lo, hi = extent(members, headings[g])
         rotation = R @ _yaw_matrix(headings[g])
         center = rotation @ ((lo + hi) / 2)
-        parts = {int(p) for p in lab[members] if p >= 0 and cuboids[int(p)].kind == "object"}
-        parts |= {seeds[h] for h in range(len(seeds)) if seeds[h] >= 0 and np.any(group[members] == h)}
+        parts = {int(p) for p in np.unique(lab[members]) if p >= 0 and cuboids[int(p)].kind == "object"}
+        parts |= {seeds[h] for h in np.unique(group[members]) if seeds[h] >= 0}
         box = Cuboid(center, (hi - lo) / 2, rotation, kind="object")
         objects.append(SceneObject(box, tuple(sorted(parts)), len(members)))
     objects.sort(key=lambda o: -o.points)

@@ -236,8 +236,7 @@ def low_walls_are_furniture(cuboids: list[Cuboid], points: np.ndarray, up: np.nd
         return
     room_top = float(np.percentile(points @ up, 99))
     for c in cuboids:
-        top = float(c.center @ up + np.abs(c.rotation.T @ up) @ c.half_size)
-        if c.kind == "wall" and top < room_top - WALL_TOP_GAP_M:
+        if c.kind == "wall" and c.top(up) < room_top - WALL_TOP_GAP_M:
             c.kind = "object"
 
 

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.objects import group_objects, level_frame
+from cuboidcli.fitting.objects import group_objects
+from cuboidcli.geometry.gravity import level_frame
 
 VOXEL = 0.035
 
