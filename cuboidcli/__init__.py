@@ -8,7 +8,7 @@ The Python API (:mod:`cuboidcli.api`), imported on first use so that ``import cu
 
 from __future__ import annotations
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 #: Public name -> module that defines it.
 _EXPORTS = {
