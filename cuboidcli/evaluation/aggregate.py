@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cuboidcli.evaluation.auc import auc_key
-from cuboidcli.evaluation.iou import BOX_IOU, box_rates
+from cuboidcli.evaluation.iou import BOX_IOU, box_rates, match_rates
 from cuboidcli.evaluation.object_recall import object_rates
 from cuboidcli.evaluation.shape import GRAVITY_GOOD_DEG, SOURCES, ShapeMetrics
 
@@ -127,12 +127,11 @@ def aggregate(frames: list[FrameMetrics], curves: bool = True) -> dict:
         out[auc_key(cm)] = 100.0 * pooled.value
     with_gt = [f for f in frames if f.gt_matches is not None]
     if with_gt:
-        for thr in with_gt[0].gt_matches:
-            tp = sum(f.gt_matches[thr][0] for f in with_gt)
-            n_gt = sum(f.gt_matches[thr][1] for f in with_gt)
-            n_pred = sum(f.gt_matches[thr][2] for f in with_gt)
-            out[f"recall_iou{thr:g}_pct"] = 100.0 * tp / n_gt if n_gt else math.nan
-            out[f"precision_iou{thr:g}_pct"] = 100.0 * tp / n_pred if n_pred else math.nan
+        summed = {
+            thr: tuple(sum(f.gt_matches[thr][i] for f in with_gt) for i in range(3))
+            for thr in with_gt[0].gt_matches
+        }
+        out.update(match_rates(summed))
     with_objects = [f for f in frames if f.objects is not None]
     if with_objects:
         totals = [sum(f.objects[i] for f in with_objects) for i in range(4)]

@@ -129,9 +129,23 @@ def gt_match_counts(pred: list[Cuboid], gt: list[Cuboid], thresholds=IOU_THRESHO
     return {float(t): (len(greedy_matches(ious, t)), len(gt), len(pred)) for t in thresholds}
 
 
+def _rates(matched: int, n_gt: int, n_pred: int, recall_key: str, precision_key: str) -> dict:
+    """Recall matched / |GT| and precision matched / |pred| in % (NaN with a zero denominator)."""
+    return {
+        recall_key: 100.0 * matched / n_gt if n_gt else math.nan,
+        precision_key: 100.0 * matched / n_pred if n_pred else math.nan,
+    }
+
+
+def match_rates(counts: dict) -> dict:
+    """``recall_iou{t}_pct`` and ``precision_iou{t}_pct`` per IoU threshold t of ``counts`` ({t: (matched,
+    |GT|, |pred|)} as :func:`gt_match_counts` gives, of a frame or summed over frames)."""
+    out: dict = {}
+    for thr, (matched, n_gt, n_pred) in counts.items():
+        out.update(_rates(matched, n_gt, n_pred, f"recall_iou{thr:g}_pct", f"precision_iou{thr:g}_pct"))
+    return out
+
+
 def box_rates(matched: int, n_gt: int, n_pred: int) -> dict:
     """Ground-truth box recall and precision at IoU :data:`BOX_IOU` in % (NaN with a zero denominator)."""
-    return {
-        "box_recall_iou25_pct": 100.0 * matched / n_gt if n_gt else math.nan,
-        "box_precision_iou25_pct": 100.0 * matched / n_pred if n_pred else math.nan,
-    }
+    return _rates(matched, n_gt, n_pred, "box_recall_iou25_pct", "box_precision_iou25_pct")

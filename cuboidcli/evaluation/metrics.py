@@ -66,7 +66,7 @@ from cuboidcli.evaluation.auc import (
     recall_counts,
 )
 from cuboidcli.evaluation.coverage import fill_convex, projected_hull
-from cuboidcli.evaluation.iou import BOX_IOU, IOU_THRESHOLDS, box_rates, gt_match_counts
+from cuboidcli.evaluation.iou import BOX_IOU, IOU_THRESHOLDS, box_rates, gt_match_counts, match_rates
 from cuboidcli.evaluation.oa import oa_distances, oa_sq_prefix_distances
 from cuboidcli.evaluation.object_recall import (
     OBJECT_EXPLAIN_PCT,
@@ -98,6 +98,7 @@ __all__ = [
     "frame_metrics",
     "gravity_summary",
     "gt_match_counts",
+    "match_rates",
     "mean_std",
     "object_counts",
     "object_rates",
@@ -149,9 +150,7 @@ class FrameMetrics:
         }
         for cm, stats in self.auc.items():
             r[auc_key(cm)] = 100.0 * stats.value
-        for thr, (tp, n_gt, n_pred) in (self.gt_matches or {}).items():
-            r[f"recall_iou{thr:g}_pct"] = 100.0 * tp / n_gt if n_gt else math.nan
-            r[f"precision_iou{thr:g}_pct"] = 100.0 * tp / n_pred if n_pred else math.nan
+        r.update(match_rates(self.gt_matches or {}))
         if self.objects is not None:
             r.update(object_rates(*self.objects))
             r["objects_eligible"] = self.objects.eligible
