@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from cuboidcli.camera import Camera
-from cuboidcli.depth.estimator import DepthScaling, check_rgb
+from cuboidcli.depth.image import check_rgb
+from cuboidcli.depth.scale import DepthScaling
 
 HF_PREFIX = "hf:"
 EXTRA_HINT = "pip install 'cuboids[hf]'"

@@ -34,7 +34,7 @@ class OnnxPreset:
     """"short": the shorter side becomes ``size`` (Depth Anything's lower bound); "long": the longer side
     does (MiDaS's upper bound)."""
     kind: str
-    """metric | relative | relative-inverse (as :data:`cuboidcli.depth.estimator.KINDS`)."""
+    """metric | relative | relative-inverse (as :data:`cuboidcli.depth.scale.KINDS`)."""
     source: str
     """Where the convention is written down."""
 

@@ -4,13 +4,24 @@ The intersection of two boxes is a convex polytope. We start from box A as six f
 by the six half-spaces of box B (Sutherland-Hodgman per face, plus a cap polygon on each cutting plane).
 Its volume is the sum over faces of the fan tetrahedra spanned with an interior point (the vertex mean),
 which needs each face's vertices in cyclic order but not a consistent orientation.
+
+Ground-truth cuboid recall and precision count the greedy matches at each IoU threshold
+(:func:`gt_match_counts`); ``box_recall_iou25_pct`` / ``box_precision_iou25_pct`` are those at
+:data:`BOX_IOU` (:func:`box_rates`).
 """
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
+
+#: IoU thresholds of the ground-truth cuboid recall/precision.
+IOU_THRESHOLDS = (0.25, 0.5)
+#: The IoU threshold of ``box_recall_iou25_pct`` / ``box_precision_iou25_pct``.
+BOX_IOU = 0.25
 
 # Corner k of Cuboid.corners() has local signs from bits (x: 4, y: 2, z: 1); each face in cyclic order.
 _FACES = ((0, 1, 3, 2), (4, 5, 7, 6), (0, 1, 5, 4), (2, 3, 7, 6), (0, 2, 6, 4), (1, 3, 7, 5))
@@ -110,3 +121,31 @@ def greedy_matches(ious: np.ndarray, threshold: float) -> list[tuple[int, int]]:
             used_g.add(j)
             out.append((i, j))
     return out
+
+
+def gt_match_counts(pred: list[Cuboid], gt: list[Cuboid], thresholds=IOU_THRESHOLDS) -> dict:
+    """(matched, |GT|, |pred|) per IoU threshold, with a greedy one-to-one matching."""
+    ious = iou_matrix(pred, gt)
+    return {float(t): (len(greedy_matches(ious, t)), len(gt), len(pred)) for t in thresholds}
+
+
+def _rates(matched: int, n_gt: int, n_pred: int, recall_key: str, precision_key: str) -> dict:
+    """Recall matched / |GT| and precision matched / |pred| in % (NaN with a zero denominator)."""
+    return {
+        recall_key: 100.0 * matched / n_gt if n_gt else math.nan,
+        precision_key: 100.0 * matched / n_pred if n_pred else math.nan,
+    }
+
+
+def match_rates(counts: dict) -> dict:
+    """``recall_iou{t}_pct`` and ``precision_iou{t}_pct`` per IoU threshold t of ``counts`` ({t: (matched,
+    |GT|, |pred|)} as :func:`gt_match_counts` gives, of a frame or summed over frames)."""
+    out: dict = {}
+    for thr, (matched, n_gt, n_pred) in counts.items():
+        out.update(_rates(matched, n_gt, n_pred, f"recall_iou{thr:g}_pct", f"precision_iou{thr:g}_pct"))
+    return out
+
+
+def box_rates(matched: int, n_gt: int, n_pred: int) -> dict:
+    """Ground-truth box recall and precision at IoU :data:`BOX_IOU` in % (NaN with a zero denominator)."""
+    return _rates(matched, n_gt, n_pred, "box_recall_iou25_pct", "box_precision_iou25_pct")

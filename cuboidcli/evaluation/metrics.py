@@ -6,11 +6,11 @@ Per frame, on all valid full-resolution depth points:
 - ``coverage``: fraction of image pixels covered by a projected cuboid (:mod:`.coverage`).
 - ``oa_all_m``: mean OA-L2 distance (:mod:`.oa`) over the frame's valid points.
 - ``oa_covered_m``: the same over valid points whose pixel is covered; undefined (NaN) with no such point.
-- AUC@X: area under the recall curve of the OA distances up to X, divided by X (see :func:`auc`).
+- AUC@X: area under the recall curve of the OA distances up to X, divided by X (:mod:`.auc`).
 
-Aggregated over the frames of a run (as the paper): |M|, coverage and time are means over frames; OA "all"
-is the mean of the per-frame means; OA "covered" the mean over frames with covered points; AUC is POOLED
-over all points of all frames, not averaged over frames.
+Aggregated over the frames of a run (as the paper) by :func:`.aggregate.aggregate`: |M|, coverage and time
+are means over frames; OA "all" is the mean of the per-frame means; OA "covered" the mean over frames with
+covered points; AUC is POOLED over all points of all frames, not averaged over frames.
 
 Further measurements (computed by ``cuboids evaluate``; optional arguments of :func:`frame_metrics`):
 
@@ -19,19 +19,17 @@ Further measurements (computed by ``cuboids evaluate``; optional arguments of :f
   k cuboids uses all of them. AUC is pooled over all points of all frames and coverage averaged over
   frames, exactly like the plain values, which the curve reaches at k = K. The per-cuboid OA terms are
   computed once per frame (:func:`.oa.oa_sq_prefix_distances`) and the coverage masks once per cuboid.
-- **Object recall / precision** where a per-pixel instance image exists (synthetic data): every valid
-  full-resolution point is assigned to a cuboid with the estimator's own rule
-  (:func:`cuboidcli.fitting.assign.assign_points`, the config's tau, beta, tau_c and OAI setting). A
-  ground-truth object (nonzero instance id: walls, floor, ceiling and clutter too) with at least 1 % of the
-  frame's valid points is *eligible*; it is *explained* by a cuboid that holds >= 50 % of the object's
-  valid points while >= 50 % of the cuboid's assigned points lie on the object. Recall = explained /
-  eligible objects; precision = cuboids that explain an eligible object / predicted cuboids; both pooled
-  over frames.
+- **Object recall / precision** where a per-pixel instance image exists (synthetic data,
+  :mod:`.object_recall`): every valid full-resolution point is assigned to a cuboid with the estimator's
+  own rule (:func:`cuboidcli.fitting.assign.assign_points`, the config's tau, beta, tau_c and OAI setting)
+  and an eligible ground-truth object is explained by a cuboid that holds at least half of it while at least
+  half of the cuboid's points lie on it.
 - **Shape** (``shape=True``, :mod:`.shape`): per cuboid the angle of its axes to the up vector and to the
   room's Manhattan axes and the support of its visible faces by its inliers (the same assignment); per
   frame the gravity error where the gravity is known. Pooled over the cuboids (medians, support mean)
   and frames (gravity error) of a run by :func:`shape_summary` and :func:`gravity_summary`. With ground
-  truth also ``box_recall_iou25_pct`` / ``box_precision_iou25_pct`` (the IoU 0.25 matching, renamed).
+  truth also ``box_recall_iou25_pct`` / ``box_precision_iou25_pct`` (the IoU 0.25 matching of :mod:`.iou`,
+  renamed).
 
 Frames with no cuboid (counted in ``frames_without_cuboids``): there is no surface, so every point counts
 with zero recall, in the pooled AUC (its distance is infinite there) and in the object and ground-truth
@@ -46,174 +44,69 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import NamedTuple
 
 import numpy as np
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.evaluation.aggregate import (
+    aggregate,
+    gravity_summary,
+    mean_std,
+    parsimony_curve,
+    shape_summary,
+)
+from cuboidcli.evaluation.auc import (
+    AUC_CM,
+    RECALL_CURVE_CM,
+    AucStats,
+    auc,
+    auc_key,
+    pooled_recall_pct,
+    recall_counts,
+)
 from cuboidcli.evaluation.coverage import fill_convex, projected_hull
-from cuboidcli.evaluation.iou import greedy_matches, iou_matrix
+from cuboidcli.evaluation.iou import BOX_IOU, IOU_THRESHOLDS, box_rates, gt_match_counts, match_rates
 from cuboidcli.evaluation.oa import oa_distances, oa_sq_prefix_distances
-from cuboidcli.evaluation.shape import GRAVITY_GOOD_DEG, SOURCES, Reference, ShapeMetrics, shape_metrics
+from cuboidcli.evaluation.object_recall import (
+    OBJECT_EXPLAIN_PCT,
+    OBJECT_MIN_PCT,
+    ObjectCounts,
+    object_counts,
+    object_rates,
+)
+from cuboidcli.evaluation.shape import Reference, ShapeMetrics, shape_metrics
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.gravity import Gravity
 
-#: Default AUC upper bounds (cm): the paper's indoor values; outdoors it uses 50 and 10.
-AUC_CM = (20.0, 5.0)
-#: IoU thresholds of the ground-truth cuboid recall/precision.
-IOU_THRESHOLDS = (0.25, 0.5)
-#: The IoU threshold of ``box_recall_iou25_pct`` / ``box_precision_iou25_pct``.
-BOX_IOU = 0.25
-#: An object is eligible for object recall with at least this percentage of the frame's valid points.
-OBJECT_MIN_PCT = 1
-#: A cuboid explains an object when it holds at least this percentage of the object's points and at least
-#: this percentage of the cuboid's assigned points lie on the object.
-OBJECT_EXPLAIN_PCT = 50
-
-
-#: Distances (cm) at which the recall curve is sampled (the report plots it; AUC@X is its area up to X).
-RECALL_CURVE_CM = tuple(float(c) for c in range(0, 51))
-
-
-def recall_counts(distances_m: np.ndarray) -> list[int]:
-    """Points with an OA distance at most each distance of :data:`RECALL_CURVE_CM` (inf never is)."""
-    d = np.sort(np.asarray(distances_m, dtype=np.float64).ravel())
-    return [int(np.searchsorted(d, cm / 100.0, side="right")) for cm in RECALL_CURVE_CM]
-
-
-def pooled_recall_pct(frames: list) -> list[float] | None:
-    """The recall curve (%) pooled over frames (their points together) at :data:`RECALL_CURVE_CM`; None
-    when no frame has one."""
-    have = [m for m in frames if m.recall_counts is not None]
-    n = sum(m.n_points for m in have)
-    if not n:
-        return None
-    return [100.0 * sum(m.recall_counts[i] for m in have) / n for i in range(len(RECALL_CURVE_CM))]
-
-
-def auc(distances_m: np.ndarray, threshold_m: float) -> float:
-    """AUC@X of a list of distances, in [0, 1]: the reference, direct definition.
-
-    The recall curve has a point (d_i, i / N) for the i-th smallest distance; it is cut at X = threshold_m
-    (points with d <= X, then (X, k / N) with k of them), integrated by the trapezoid rule and divided by X.
-    N counts every distance, infinite ones included.
-    """
-    d = np.sort(np.asarray(distances_m, dtype=np.float64).ravel())
-    n = d.size
-    k = int(np.searchsorted(d, threshold_m, side="right"))
-    if n == 0 or k == 0:
-        return 0.0
-    x = np.append(d[:k], threshold_m)
-    y = np.append(np.arange(1, k + 1) / n, k / n)
-    return float(np.trapezoid(y, x) / threshold_m)
-
-
-@dataclass
-class AucStats:
-    """Sufficient statistics of the trapezoid AUC of :func:`auc`, additive over frames (pooling).
-
-    For the sorted distances d_1 <= ... <= d_k <= X among N, the trapezoid area is
-    sum_i (X - d_i) / N + (d_k - d_1) / (2 N): the exact step-function integral plus half a step per segment.
-    """
-
-    threshold_m: float
-    n: int = 0
-    excess_sum: float = 0.0
-    d_first: float = math.inf
-    d_last: float = -math.inf
-
-    @classmethod
-    def of(cls, distances_m: np.ndarray, threshold_m: float) -> AucStats:
-        d = np.asarray(distances_m, dtype=np.float64).ravel()
-        kept = d[d <= threshold_m]
-        s = cls(threshold_m, n=int(d.size), excess_sum=float((threshold_m - kept).sum()))
-        if kept.size:
-            s.d_first, s.d_last = float(kept.min()), float(kept.max())
-        return s
-
-    def merge(self, other: AucStats) -> AucStats:
-        if other.threshold_m != self.threshold_m:
-            raise ValueError("cannot pool AUC statistics of different thresholds")
-        return AucStats(
-            self.threshold_m,
-            self.n + other.n,
-            self.excess_sum + other.excess_sum,
-            min(self.d_first, other.d_first),
-            max(self.d_last, other.d_last),
-        )
-
-    @property
-    def value(self) -> float:
-        """AUC in [0, 1]."""
-        if self.n == 0 or self.d_last < self.d_first:
-            return 0.0
-        area = self.excess_sum / self.n + (self.d_last - self.d_first) / (2.0 * self.n)
-        return area / self.threshold_m
-
-    def to_dict(self) -> dict:
-        return {
-            "threshold_m": self.threshold_m,
-            "n": self.n,
-            "excess_sum": self.excess_sum,
-            "d_first": self.d_first,
-            "d_last": self.d_last,
-        }
-
-
-class ObjectCounts(NamedTuple):
-    """Object recall / precision counts of one frame (pooled by summing)."""
-
-    explained: int
-    """Eligible objects explained by a cuboid."""
-    eligible: int
-    """Objects with >= OBJECT_MIN_PCT % of the frame's valid points."""
-    explaining: int
-    """Predicted cuboids that explain an eligible object."""
-    predicted: int
-    """Predicted cuboids."""
-
-
-def object_counts(labels: np.ndarray, instance_ids: np.ndarray, n_cuboids: int) -> ObjectCounts:
-    """Object recall / precision counts from a per-point assignment.
-
-    ``labels`` (N,) per valid point: the cuboid index (>= 0), -1 (none) or -2 (occluded), as
-    :func:`cuboidcli.fitting.assign.assign_points` returns; ``instance_ids`` (N,) the ground-truth object id
-    of each point (0 = no object). N (all valid points) is the base of the eligibility threshold.
-    """
-    labels = np.asarray(labels).ravel()
-    ids = np.asarray(instance_ids).ravel().astype(np.int64)
-    n = ids.size
-    if labels.size != n:
-        raise ValueError(f"{labels.size} labels for {n} instance ids")
-    if n == 0:
-        return ObjectCounts(0, 0, 0, n_cuboids)
-    present = np.flatnonzero(np.bincount(ids))  # object ids with points, ascending (0 first if present)
-    index = np.zeros(int(ids.max()) + 1, dtype=np.int64)
-    index[present] = np.arange(present.size)
-    obj = index[ids]  # (N,) dense object index
-    sizes = np.bincount(obj, minlength=present.size)
-    eligible = (present != 0) & (100 * sizes >= OBJECT_MIN_PCT * n)
-    n_eligible = int(eligible.sum())
-    if n_cuboids == 0 or n_eligible == 0:
-        return ObjectCounts(0, n_eligible, 0, n_cuboids)
-    on = labels >= 0
-    joint = np.bincount(
-        obj[on] * n_cuboids + labels[on].astype(np.int64), minlength=present.size * n_cuboids
-    ).reshape(present.size, n_cuboids)  # joint[o, h]: points of object o assigned to cuboid h
-    assigned = joint.sum(axis=0)  # points assigned to each cuboid (on any object or none)
-    explains = (
-        eligible[:, None]
-        & (joint > 0)
-        & (100 * joint >= OBJECT_EXPLAIN_PCT * sizes[:, None])
-        & (100 * joint >= OBJECT_EXPLAIN_PCT * assigned[None, :])
-    )
-    return ObjectCounts(
-        explained=int(explains.any(axis=1).sum()),
-        eligible=n_eligible,
-        explaining=int(explains.any(axis=0).sum()),
-        predicted=n_cuboids,
-    )
+#: The metrics' public names, those of the modules each concept lives in included, so that
+#: ``from cuboidcli.evaluation.metrics import ...`` reaches all of them.
+__all__ = [
+    "AUC_CM",
+    "BOX_IOU",
+    "IOU_THRESHOLDS",
+    "OBJECT_EXPLAIN_PCT",
+    "OBJECT_MIN_PCT",
+    "RECALL_CURVE_CM",
+    "AucStats",
+    "FrameMetrics",
+    "ObjectCounts",
+    "aggregate",
+    "auc",
+    "auc_key",
+    "box_rates",
+    "frame_metrics",
+    "gravity_summary",
+    "gt_match_counts",
+    "match_rates",
+    "mean_std",
+    "object_counts",
+    "object_rates",
+    "parsimony_curve",
+    "pooled_recall_pct",
+    "recall_counts",
+    "shape_summary",
+]
 
 
 @dataclass
@@ -257,9 +150,7 @@ class FrameMetrics:
         }
         for cm, stats in self.auc.items():
             r[auc_key(cm)] = 100.0 * stats.value
-        for thr, (tp, n_gt, n_pred) in (self.gt_matches or {}).items():
-            r[f"recall_iou{thr:g}_pct"] = 100.0 * tp / n_gt if n_gt else math.nan
-            r[f"precision_iou{thr:g}_pct"] = 100.0 * tp / n_pred if n_pred else math.nan
+        r.update(match_rates(self.gt_matches or {}))
         if self.objects is not None:
             r.update(object_rates(*self.objects))
             r["objects_eligible"] = self.objects.eligible
@@ -297,79 +188,6 @@ class FrameMetrics:
             }
             for k in range(len(s.slab))
         ]
-
-
-def auc_key(threshold_cm: float) -> str:
-    return f"auc{threshold_cm:g}cm_pct"
-
-
-def object_rates(explained: int, eligible: int, explaining: int, predicted: int) -> dict:
-    """Object recall and precision in % (NaN with a zero denominator)."""
-    return {
-        "object_recall_pct": 100.0 * explained / eligible if eligible else math.nan,
-        "object_precision_pct": 100.0 * explaining / predicted if predicted else math.nan,
-    }
-
-
-def box_rates(matched: int, n_gt: int, n_pred: int) -> dict:
-    """Ground-truth box recall and precision at IoU :data:`BOX_IOU` in % (NaN with a zero denominator)."""
-    return {
-        "box_recall_iou25_pct": 100.0 * matched / n_gt if n_gt else math.nan,
-        "box_precision_iou25_pct": 100.0 * matched / n_pred if n_pred else math.nan,
-    }
-
-
-def _median(values) -> float:
-    v = np.asarray(values, dtype=np.float64)
-    v = v[np.isfinite(v)]
-    return float(np.median(v)) if v.size else math.nan
-
-
-def shape_summary(shapes: list[ShapeMetrics]) -> dict:
-    """Axis angles, slab alignment and support pooled over the cuboids of ``shapes`` (frames), in reporting
-    units: medians over all cuboids with a defined value (NaN when none)."""
-    ang_g = np.concatenate([s.angle_gravity_deg for s in shapes])
-    ang_m = np.concatenate([s.angle_manhattan_deg for s in shapes])
-    support = np.concatenate([s.support for s in shapes])
-    support = support[np.isfinite(support)]
-    slabs = sum(s.slabs_measured for s in shapes)
-    room = sum(s.room_slabs_measured for s in shapes)
-    return {
-        "axis_angle_gravity_median_deg": _median(ang_g),
-        "axis_angle_manhattan_median_deg": _median(ang_m),
-        "slabs": slabs,
-        "slabs_within_3deg_pct": 100.0 * sum(s.slabs_aligned for s in shapes) / slabs if slabs else math.nan,
-        "room_slabs": room,
-        "room_slabs_within_3deg_pct": (
-            100.0 * sum(s.room_slabs_aligned for s in shapes) / room if room else math.nan
-        ),
-        "support_median_pct": 100.0 * float(np.median(support)) if support.size else math.nan,
-        "support_mean_pct": 100.0 * float(support.mean()) if support.size else math.nan,
-    }
-
-
-def gravity_summary(shapes: list[ShapeMetrics]) -> dict:
-    """The gravity error over the frames with a known gravity (none: {}). A frame without a reliable
-    estimate counts in the denominator of the share within :data:`GRAVITY_GOOD_DEG` but not in the median
-    and maximum; it is counted in ``gravity_estimates_missing``."""
-    known = [s for s in shapes if s.gravity_error_of]
-    if not known:
-        return {}
-    err = np.array([s.gravity_error_deg for s in known], dtype=np.float64)
-    fin = err[np.isfinite(err)]
-    return {
-        "gravity_error_median_deg": float(np.median(fin)) if fin.size else math.nan,
-        "gravity_error_max_deg": float(fin.max()) if fin.size else math.nan,
-        "gravity_within_2deg_pct": 100.0 * float((fin <= GRAVITY_GOOD_DEG).sum()) / len(known),
-        "frames_with_known_gravity": len(known),
-        "gravity_estimates_missing": int(len(known) - fin.size),
-    }
-
-
-def gt_match_counts(pred: list[Cuboid], gt: list[Cuboid], thresholds=IOU_THRESHOLDS) -> dict:
-    """(matched, |GT|, |pred|) per IoU threshold, with a greedy one-to-one matching."""
-    ious = iou_matrix(pred, gt)
-    return {float(t): (len(greedy_matches(ious, t)), len(gt), len(pred)) for t in thresholds}
 
 
 def frame_metrics(
@@ -465,120 +283,3 @@ def frame_metrics(
             estimate=(cfg.step_for(*depth_m.shape), cfg.seed),
         )
     return m
-
-
-def _nanmean(values) -> float:
-    v = np.array([x for x in values if x is not None], dtype=np.float64)
-    v = v[np.isfinite(v)]
-    return float(v.mean()) if v.size else math.nan
-
-
-def _padded(curve: list, k_max: int) -> list:
-    """A frame's curve extended to k_max with its last value (all of the frame's cuboids)."""
-    return list(curve) + [curve[-1]] * (k_max - len(curve))
-
-
-def parsimony_curve(frames: list[FrameMetrics]) -> dict | None:
-    """Pooled parsimony curve of a run: {"k", auc keys, "coverage_pct"} as lists in reporting units.
-
-    AUC pooled over all points of all frames per k; coverage the mean over frames per k. None unless every
-    frame has its curve.
-    """
-    if not frames or any(f.prefix_coverage is None or f.prefix_auc is None for f in frames):
-        return None
-    k_max = max(len(f.prefix_coverage) for f in frames)
-    out: dict = {"k": list(range(1, k_max + 1))}
-    for cm in frames[0].prefix_auc:
-        curves = [_padded(f.prefix_auc[cm], k_max) for f in frames]
-        pooled = []
-        for k in range(k_max):
-            stats = curves[0][k]
-            for c in curves[1:]:
-                stats = stats.merge(c[k])
-            pooled.append(100.0 * stats.value)
-        out[auc_key(cm)] = pooled
-    cov = np.array([_padded(f.prefix_coverage, k_max) for f in frames], dtype=np.float64)
-    out["coverage_pct"] = (100.0 * cov.mean(axis=0)).tolist()
-    return out
-
-
-def aggregate(frames: list[FrameMetrics], curves: bool = True) -> dict:
-    """Aggregates of one run in reporting units, keys in the paper's column order (see module docstring).
-
-    ``curves``: include the parsimony curve (key "parsimony") when the frames have it.
-    """
-    if not frames:
-        return {"frames": 0}
-    out = {
-        "time_s": _nanmean(f.time_s for f in frames),
-        "cuboids": float(np.mean([f.cuboids for f in frames])),
-        "coverage_pct": 100.0 * float(np.mean([f.coverage for f in frames])),
-        "oa_covered_cm": 100.0 * _nanmean(f.oa_covered_m for f in frames),
-        "oa_all_cm": 100.0 * _nanmean(f.oa_all_m for f in frames),
-    }
-    for cm in frames[0].auc:
-        pooled = frames[0].auc[cm]
-        for f in frames[1:]:
-            pooled = pooled.merge(f.auc[cm])
-        out[auc_key(cm)] = 100.0 * pooled.value
-    with_gt = [f for f in frames if f.gt_matches is not None]
-    if with_gt:
-        for thr in with_gt[0].gt_matches:
-            tp = sum(f.gt_matches[thr][0] for f in with_gt)
-            n_gt = sum(f.gt_matches[thr][1] for f in with_gt)
-            n_pred = sum(f.gt_matches[thr][2] for f in with_gt)
-            out[f"recall_iou{thr:g}_pct"] = 100.0 * tp / n_gt if n_gt else math.nan
-            out[f"precision_iou{thr:g}_pct"] = 100.0 * tp / n_pred if n_pred else math.nan
-    with_objects = [f for f in frames if f.objects is not None]
-    if with_objects:
-        totals = [sum(f.objects[i] for f in with_objects) for i in range(4)]
-        out.update(object_rates(*totals))
-        out["objects_eligible"] = totals[1]
-    out["frames"] = len(frames)
-    out["frames_without_cuboids"] = sum(1 for f in frames if f.cuboids == 0)
-    out["frames_with_gt"] = len(with_gt)
-    if with_objects:
-        out["frames_with_instances"] = len(with_objects)
-    box = [f.gt_matches[BOX_IOU] for f in with_gt if BOX_IOU in f.gt_matches]
-    if box:
-        out.update(box_rates(*(sum(c[i] for c in box) for i in range(3))))
-    shapes = [f.shape for f in frames if f.shape is not None]
-    if shapes:
-        out.update(shape_summary(shapes))
-        for source in SOURCES:
-            out[f"frames_gravity_{source}"] = sum(1 for s in shapes if s.reference == source)
-        out.update(gravity_summary(shapes))
-    if curves and (curve := parsimony_curve(frames)) is not None:
-        out["parsimony"] = curve
-    return out
-
-
-def _mean_std_curves(curves: list[dict]) -> tuple[dict, dict]:
-    """Element-wise mean and population std over runs of parsimony curves (shorter ones padded)."""
-    k_max = max(len(c["k"]) for c in curves)
-    mean: dict = {"k": list(range(1, k_max + 1))}
-    std: dict = {"k": list(range(1, k_max + 1))}
-    for key in curves[0]:
-        if key == "k":
-            continue
-        vals = np.array([_padded(c[key], k_max) for c in curves], dtype=np.float64)
-        with np.errstate(invalid="ignore"):
-            mean[key], std[key] = vals.mean(axis=0).tolist(), vals.std(axis=0).tolist()
-    return mean, std
-
-
-def mean_std(runs: list[dict]) -> dict[str, tuple]:
-    """Mean and population std (ddof 0) of each aggregate over runs, like the paper's tables.
-
-    The parsimony curve ("parsimony") gives a pair of dicts of lists: (mean per k, std per k).
-    """
-    out: dict = {}
-    for key in runs[0]:
-        if key == "parsimony":
-            curves = [r["parsimony"] for r in runs if "parsimony" in r]
-            out[key] = _mean_std_curves(curves)
-            continue
-        vals = np.array([r.get(key, math.nan) for r in runs], dtype=np.float64)
-        fin = vals[np.isfinite(vals)]
-        out[key] = (float(fin.mean()), float(fin.std())) if fin.size else (math.nan, math.nan)
-    return out

@@ -31,8 +31,9 @@ import math
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.evaluation.auc import auc, auc_key
 from cuboidcli.evaluation.iou import box_iou, greedy_matches
-from cuboidcli.evaluation.metrics import auc, auc_key, object_counts, object_rates
+from cuboidcli.evaluation.object_recall import object_counts, object_rates
 
 SHELL_KINDS = frozenset({"floor", "wall", "ceiling"})
 #: IoU thresholds of the box recall (the precision uses the same matchings).

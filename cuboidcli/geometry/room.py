@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit, prange
 
-from cuboidcli.geometry.fused import _fi, _occluding_value, _pair_value, inlier_params, to_local
+from cuboidcli.geometry.inlier import f_inlier, inlier_params, occluding_value, pair_value, to_local
 
 VISIBILITY = ("views", "inside", "plain")
 _MODE = {"views": 0, "inside": 1, "plain": 2}
@@ -52,14 +52,14 @@ def _room_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope,
     if mode == 0:
         oai = True
         args = (beta, inv_tau, tau_c, slope, offset, cutoff, oai)
-        v = _pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, *args)
+        v = pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, *args)
         # A viewpoint inside the cuboid: the whole line of sight from it to the cuboid's surface was seen
         # empty, yet the solid box claims it (a camera is never inside furniture, and a box around the
         # room's interior would swallow every wall from within). Penalised like a side the point hides
         # behind, by the viewpoint's depth inside the box.
         m = min(a0 - abs(c0), min(a1 - abs(c1), a2 - abs(c2)))
         if m > 0:
-            inside = _occluding_value(m * m, beta, inv_tau, tau_c, slope, offset, cutoff)
+            inside = occluding_value(m * m, beta, inv_tau, tau_c, slope, offset, cutoff)
             if inside < 0:
                 v = min(v, inside)
         return v
@@ -68,13 +68,13 @@ def _room_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope,
     q2 = abs(l2) - a2
     if mode == 1 and q0 < 0 and q1 < 0 and q2 < 0:
         m = min(-q0, min(-q1, -q2))
-        return _occluding_value(m * m, beta, inv_tau, tau_c, slope, offset, cutoff)
+        return occluding_value(m * m, beta, inv_tau, tau_c, slope, offset, cutoff)
     e0 = q0 * q0 if q0 > 0 else 0.0
     e1 = q1 * q1 if q1 > 0 else 0.0
     e2 = q2 * q2 if q2 > 0 else 0.0
     m = min(-q0, min(-q1, -q2))
     d2 = e0 + e1 + e2 + (m * m if m > 0 else 0.0)
-    return _fi(d2, beta, inv_tau) if d2 < cutoff else 0.0
+    return f_inlier(d2, beta, inv_tau) if d2 < cutoff else 0.0
 
 
 @njit(cache=True, inline="always")

@@ -12,7 +12,7 @@ from torch import nn
 
 from cuboidcli.camera import Camera
 from cuboidcli.depth import BuiltinDepthEstimator, OnnxDepthEstimator
-from cuboidcli.depth.estimator import fit_scale_shift
+from cuboidcli.depth.scale import fit_scale_shift
 from cuboidcli.factories import depth_for_fit, make_depth_estimator
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.depth import DepthNet, DepthNetConfig, net_from_checkpoint

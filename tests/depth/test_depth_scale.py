@@ -9,8 +9,7 @@ import numpy as np
 import pytest
 
 from cuboidcli.camera import Camera
-from cuboidcli.depth.estimator import DepthScaling
-from cuboidcli.depth.scale import scale_from_camera_height
+from cuboidcli.depth.scale import DepthScaling, scale_from_camera_height
 
 CAMERA = Camera(fx=300.0, fy=300.0, cx=159.5, cy=119.5, width=320, height=240)
 

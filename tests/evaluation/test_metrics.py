@@ -11,9 +11,11 @@ import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.evaluation.aggregate import aggregate, mean_std
+from cuboidcli.evaluation.auc import AucStats, auc
 from cuboidcli.evaluation.coverage import clip_corners_near, convex_hull_2d, coverage_mask, fill_convex
 from cuboidcli.evaluation.iou import box_iou, greedy_matches, intersection_volume
-from cuboidcli.evaluation.metrics import AucStats, aggregate, auc, frame_metrics, mean_std
+from cuboidcli.evaluation.metrics import frame_metrics
 from cuboidcli.evaluation.oa import oa_distances, oa_sq_distances, oa_sq_prefix_distances, oa_sq_terms
 from cuboidcli.evaluation.raycast import ray_coverage_mask, render_depth
 from cuboidcli.geometry.kernels import oa_sq_distance
@@ -351,7 +353,7 @@ def test_greedy_matching_is_one_to_one_and_takes_best_first():
 
 
 def test_the_recall_curve_counts_points_within_each_distance_and_pools_over_frames():
-    from cuboidcli.evaluation.metrics import RECALL_CURVE_CM, auc, pooled_recall_pct, recall_counts
+    from cuboidcli.evaluation.auc import RECALL_CURVE_CM, pooled_recall_pct, recall_counts
 
     d = np.array([0.0, 0.004, 0.01, 0.019, 0.2, np.inf])
     counts = recall_counts(d)

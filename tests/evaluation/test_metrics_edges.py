@@ -11,17 +11,10 @@ import pytest
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.metrics import (
-    AucStats,
-    FrameMetrics,
-    ObjectCounts,
-    aggregate,
-    auc,
-    frame_metrics,
-    mean_std,
-    object_counts,
-    parsimony_curve,
-)
+from cuboidcli.evaluation.aggregate import aggregate, mean_std, parsimony_curve
+from cuboidcli.evaluation.auc import AucStats, auc
+from cuboidcli.evaluation.metrics import FrameMetrics, frame_metrics
+from cuboidcli.evaluation.object_recall import ObjectCounts, object_counts
 from cuboidcli.evaluation.raycast import render_depth
 
 CAM = Camera.preset("nyu").scaled(0.125)  # 80x60

@@ -9,7 +9,8 @@ from cuboidcli.camera import Camera
 from cuboidcli.fitting.backend import NumbaBackend, ScoreParams
 from cuboidcli.fitting.pipeline import prepare_points
 from cuboidcli.geometry import kernels as K
-from cuboidcli.geometry.fused import ImageCells, score_gains
+from cuboidcli.geometry.cells import ImageCells
+from cuboidcli.geometry.fused import score_gains
 from cuboidcli.geometry.rotations import axis_angle_to_matrix
 
 TAU, BETA = 0.004, 5.0

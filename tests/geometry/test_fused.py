@@ -93,7 +93,7 @@ def test_large_tau_c_of_the_training_schedule():
 def test_occluding_sides_are_the_reference_occluders_and_their_distances():
     """The shared helper of the values loop and the refinement: the sides on a point's line of sight
     (chi_o, Eq. 6) and the point's squared distance to each, as the torch kernels compute them."""
-    from cuboidcli.geometry.fused import occluding_sides
+    from cuboidcli.geometry.inlier import occluding_sides
 
     pts, c, a, R, _ = scene(n=300, h=12, seed=9)
     local = K.to_local(pts, c, R)
