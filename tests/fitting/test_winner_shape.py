@@ -118,3 +118,26 @@ def test_edge_to_vertical_turns_a_tilted_slab_in_its_plane():
     # a level slab without a room frame has no direction to turn to
     assert edge_to_vertical(np.eye(3)[:, [0, 2, 1]] * [1, 1, -1], 2, Alignment("gravity", up)) is None
     assert edge_to_vertical(rot, -1, Alignment("gravity", up)) is None
+
+
+def test_the_refinement_runs_with_the_configured_settings(cabinet_points):
+    """``refine_iters`` and ``refine_lr`` reach the backend's refinement; ``refine_keep`` decides whether the
+    refined box replaces the selected one (a negative share: never)."""
+    from cuboidcli.fitting.backend import NumbaBackend
+    from cuboidcli.fitting.winner import refine_winner
+
+    pts, state = cabinet_points
+    seen = []
+
+    class Spy(NumbaBackend):
+        def refine(self, points, center, half, rotation, a_min, a_max, iters=0, lr=0.0):
+            seen.append((iters, lr))
+            return super().refine(points, center, half, rotation, a_min, a_max, iters, lr)
+
+    config = replace(CFG, grow_rounds=0, refine_iters=7, refine_lr=0.01)
+    ctx = StepContext.of(pts, state, config, SP, Spy())
+    front = ctx.score(_box([1.2, 0.9, 3.6], [0.4, 0.5, 0.02], np.eye(3)))
+    refine_winner(front, ctx)
+    assert seen == [(7, 0.01)]
+    never = StepContext.of(pts, state, replace(config, refine_keep=-1.0), SP, Spy())
+    assert refine_winner(front, never) is front
