@@ -7,6 +7,7 @@ import torch
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.backend import ScoreParams, ScoringBackend, backend_for
+from cuboidcli.geometry.kernels import INLIER_CUT
 
 NONE = -1
 OCCLUDED = -2
@@ -24,7 +25,8 @@ def assign_points(
     """Labels (N,) int32 for points (N, 3) in metres (an array, or a tensor on any device).
 
     -2 where f_OAI(y, M) < 0 (the point is hidden behind a cuboid side it does not lie on), otherwise the
-    index of the cuboid with the highest inlier value if that value is >= 0.5 (d^2 <= tau), else -1.
+    index of the cuboid with the highest inlier value if that value is >= ``INLIER_CUT`` (0.5: d^2 <= tau),
+    else -1.
     The values come from ``backend`` (None: the default backend of the points' device, numba on the CPU).
     """
     pts = torch.as_tensor(points, dtype=torch.float64).reshape(-1, 3)
@@ -42,6 +44,7 @@ def assign_points(
     lo = vals.min(0)
     best = vals.argmax(0)
     hi = vals.max(0)
-    labels[hi >= 0.5] = best[hi >= 0.5]
+    inlier = hi >= INLIER_CUT
+    labels[inlier] = best[inlier]
     labels[lo < 0] = OCCLUDED
     return labels

@@ -13,33 +13,27 @@ numbers on both, so they select the same hypotheses up to rounding. Rounding can
 while a winner is refined or grown (two boxes whose gains differ in the first decimal), and from there
 the two fits part: same quality, other cuboids.
 
-**Values and gains** (:class:`ScoreParams`): the torch reference kernels (:func:`values_torch`,
-:func:`gains_torch`, any device, in chunks of hypotheses) and the fused numba loop (:func:`gains_cpu`, numpy
-on the CPU).
+**Values and gains**: the torch reference kernels and the fused numba loop of
+:mod:`cuboidcli.fitting.scoring` (:class:`~cuboidcli.fitting.scoring.ScoreParams`: the inlier function).
 
-**Refining the selected cuboid** on all the points it explains ("refine the winner";
-:func:`refine_cuboid`, :func:`refine_cuboid_fused`). A minimal set fixes a cuboid only up to the softness of
-the inlier function: a thin slab whose far face carries the points scores the same as one whose near face
-does (f_IO of the occluding near face stays positive while it is within sqrt(tau) of the point), yet its
-occlusion-aware distance is off by up to sqrt(tau) ~ 6 cm. Refinement minimises the mean squared
-occlusion-aware distance d_oa(h, y)^2 (Sec. 3.1) of the winner's inliers with Adam, in the spirit of the
-paper's optional EM refinement (appendix); the estimator keeps the refined cuboid only if its inlier-count
-gain does not drop.
+**Refining the selected cuboid** on all the points it explains: :meth:`ScoringBackend.refine` runs
+:mod:`cuboidcli.fitting.refine`'s Adam (numba or torch).
 """
 
 from __future__ import annotations
 
 import operator
 from abc import ABC, abstractmethod
-from dataclasses import dataclass
 
 import numpy as np
 import torch
 from torch import Tensor
 
-from cuboidcli.geometry import kernels as K
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
+from cuboidcli.fitting.scoring import ScoreParams, gains_torch, values_torch
+from cuboidcli.fitting.scoring import gains_cpu as gains_cpu  # callers outside fitting take it from here
 from cuboidcli.geometry.backends import resolve_backend
-from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 #: Exact selection: candidates nominated on a random eighth of the points whose best exact gain becomes
 #: the pruning threshold (backends that prune).
@@ -53,114 +47,6 @@ HYBRID_FEW = 64
 #: Nomination on a grid: every 2nd row and 4th column (an eighth of the points), hypotheses in blocks.
 NOMINATION_GRID = (2, 4)
 NOMINATION_BLOCK = 256
-
-
-@dataclass(frozen=True)
-class ScoreParams:
-    """The inlier function's parameters: tau (m^2), beta, the occlusion threshold tau_c (m^2), and whether
-    inliers are counted occlusion-aware (f_OAI) or plainly (f_I)."""
-
-    tau: float
-    beta: float
-    tau_c: float
-    occlusion_aware: bool = True
-
-
-def values_torch(points: Tensor, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:
-    """f_OAI(y, {h}) per hypothesis (H, N), or the plain soft inlier f_I(d^2) without OAI."""
-    if sp.occlusion_aware:
-        return K.oai_per_cuboid(points, centers, half_sizes, rotations, sp.tau, sp.beta, sp.tau_c)
-    local = K.to_local(points, centers, rotations)
-    return K.inlier_fn(K.cuboid_sq_distance(local, half_sizes), sp.tau, sp.beta)
-
-
-def gains_torch(
-    points: Tensor, centers, half_sizes, rotations, state: Tensor, sp: ScoreParams, chunk: int = 64
-) -> Tensor:
-    """Reference gains (H,): sum over points of combine(value, state) - state."""
-    out = []
-    for s in range(0, centers.shape[0], chunk):
-        v = values_torch(
-            points, centers[s : s + chunk], half_sizes[s : s + chunk], rotations[s : s + chunk], sp
-        )
-        out.append((K.combine(v, state[None]) - state[None]).sum(1))
-    return torch.cat(out) if out else torch.zeros(0, dtype=points.dtype, device=points.device)
-
-
-def gains_cpu(
-    points: np.ndarray,
-    centers,
-    half_sizes,
-    rotations,
-    state: np.ndarray,
-    sp: ScoreParams,
-    prune_below: float = -np.inf,
-    cells=None,
-) -> np.ndarray:
-    """Gains (H,) float64 with the fused numba loop, numpy arrays in; ``prune_below`` and ``cells`` as in
-    :func:`~cuboidcli.geometry.fused.score_gains`."""
-    from cuboidcli.geometry.fused import score_gains
-
-    return score_gains(
-        points,
-        centers,
-        half_sizes,
-        rotations,
-        state,
-        sp.tau,
-        sp.beta,
-        sp.tau_c,
-        sp.occlusion_aware,
-        prune_below,
-        cells,
-    )
-
-
-def refine_cuboid_fused(
-    points: np.ndarray, center, half, rotation, a_min: float, a_max: float, iters: int = 25, lr: float = 0.003
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """CPU fast path of :func:`refine_cuboid` (numba, analytic gradient); numpy in, numpy out."""
-    from cuboidcli.solvers.adam_fused import refine_adam
-
-    r = matrix_to_axis_angle(torch.as_tensor(np.asarray(rotation, dtype=np.float64))).numpy()
-    init = np.concatenate([np.asarray(center, np.float64), r, np.asarray(half, np.float64)])
-    best = refine_adam(np.ascontiguousarray(points, np.float64), init, a_min, a_max, lr, iters)
-    R = axis_angle_to_matrix(torch.from_numpy(best[3:6].copy())).numpy()
-    return best[:3], best[6:], R
-
-
-def refine_cuboid(
-    points: Tensor,
-    center: Tensor,
-    half: Tensor,
-    rotation: Tensor,
-    a_min: float,
-    a_max: float,
-    iters: int = 25,
-    lr: float = 0.003,
-) -> tuple[Tensor, Tensor, Tensor]:
-    """points (N, 3) inliers; center (3,), half (3,), rotation (3, 3) -> refined (center, half, R)."""
-    pts = points.double()
-    c = center.double().clone().requires_grad_(True)
-    r = matrix_to_axis_angle(rotation.double()).clone().requires_grad_(True)
-    a = half.double().clone().requires_grad_(True)
-    opt = torch.optim.Adam([c, r, a], lr=lr)
-    best = (float("inf"), center.double(), half.double(), rotation.double())
-    with torch.enable_grad():
-        for it in range(iters + 1):
-            R = axis_angle_to_matrix(r)[None]
-            loss = K.oa_sq_distance(pts, c[None], a[None], R).mean()
-            if loss.item() < best[0]:
-                best = (loss.item(), c.detach().clone(), a.detach().clone(), R[0].detach().clone())
-            if it == iters:
-                break
-            opt.zero_grad(set_to_none=True)
-            loss.backward()
-            opt.step()
-            with torch.no_grad():
-                a.clamp_(a_min, a_max)
-    _, cb, ab, Rb = best
-    return cb.to(center.dtype), ab.to(half.dtype), Rb.to(rotation.dtype)
 
 
 class ScoringBackend(ABC):
@@ -199,11 +85,19 @@ class ScoringBackend(ABC):
 
     @abstractmethod
     def refine(
-        self, points: Tensor, center: Tensor, half: Tensor, rotation: Tensor, a_min: float, a_max: float
+        self,
+        points: Tensor,
+        center: Tensor,
+        half: Tensor,
+        rotation: Tensor,
+        a_min: float,
+        a_max: float,
+        iters: int = FitConfig.refine_iters,
+        lr: float = FitConfig.refine_lr,
     ) -> tuple[Tensor, Tensor, Tensor]:
-        """Adam on the mean squared occlusion-aware distance of ``points`` (M, 3) to the cuboid (center (3,),
-        half (3,), rotation (3, 3)), half-sizes kept in [a_min, a_max]: the best iterate as
-        (center, half, rotation) tensors on the points' device."""
+        """``iters`` steps of Adam (learning rate ``lr``) on the mean squared occlusion-aware distance of
+        ``points`` (M, 3) to the cuboid (center (3,), half (3,), rotation (3, 3)), half-sizes kept in
+        [a_min, a_max]: the best iterate as (center, half, rotation) tensors on the points' device."""
 
     def select_best(
         self,
@@ -296,7 +190,7 @@ class ScoringBackend(ABC):
 
 
 class NumbaBackend(ScoringBackend):
-    """The fused numba loops of :mod:`cuboidcli.geometry.fused` and :mod:`cuboidcli.solvers.adam_fused`:
+    """The fused numba loops of :mod:`cuboidcli.geometry.fused` and :mod:`cuboidcli.geometry.adam`:
     no (H, N, 6) tensors, provable pruning of hypotheses that cannot win. CPU tensors only."""
 
     name = "numba"
@@ -338,8 +232,12 @@ class NumbaBackend(ScoringBackend):
         self._cache = (objects, versions, arrays)
         return arrays
 
-    def refine(self, points, center, half, rotation, a_min: float, a_max: float):
-        out = refine_cuboid_fused(*(x.numpy() for x in (points, center, half, rotation)), a_min, a_max)
+    def refine(
+        self, points, center, half, rotation, a_min: float, a_max: float,
+        iters: int = FitConfig.refine_iters, lr: float = FitConfig.refine_lr,
+    ):  # fmt: skip
+        arrays = (x.numpy() for x in (points, center, half, rotation))
+        out = refine_cuboid_fused(*arrays, a_min, a_max, iters, lr)
         return tuple(torch.from_numpy(np.asarray(x)) for x in out)
 
     def warm_up(self) -> None:
@@ -385,8 +283,11 @@ class TorchBackend(ScoringBackend):
         tensors = (x.double() for x in (points, centers, half_sizes, rotations, state))
         return gains_torch(*tensors, sp, chunk=self._chunk(points)).cpu().numpy()
 
-    def refine(self, points, center, half, rotation, a_min: float, a_max: float):
-        return refine_cuboid(points, center, half, rotation, a_min, a_max)
+    def refine(
+        self, points, center, half, rotation, a_min: float, a_max: float,
+        iters: int = FitConfig.refine_iters, lr: float = FitConfig.refine_lr,
+    ):  # fmt: skip
+        return refine_cuboid(points, center, half, rotation, a_min, a_max, iters, lr)
 
 
 class HybridBackend(TorchBackend):
@@ -429,10 +330,12 @@ class HybridBackend(TorchBackend):
         boxes = (x.detach().double().cpu() for x in (centers, half_sizes, rotations))
         return self._cpu.gains(self._host(points), *boxes, self._host(state), sp)
 
-    def refine(self, points, center, half, rotation, a_min: float, a_max: float):
-        out = self._cpu.refine(
-            *(x.detach().double().cpu() for x in (points, center, half, rotation)), a_min, a_max
-        )
+    def refine(
+        self, points, center, half, rotation, a_min: float, a_max: float,
+        iters: int = FitConfig.refine_iters, lr: float = FitConfig.refine_lr,
+    ):  # fmt: skip
+        boxes = (x.detach().double().cpu() for x in (points, center, half, rotation))
+        out = self._cpu.refine(*boxes, a_min, a_max, iters, lr)
         return tuple(x.to(points.device) for x in out)
 
 

@@ -123,6 +123,13 @@ class FitConfig:
     """Learning rate of the numerical solver's Adam (0.01 NYU, 0.5 outdoors)."""
     solver_iters: int = 50
     """Adam iterations of the numerical solver."""
+    refine_iters: int = 25
+    """Adam iterations of the refinement of each selected cuboid (``refine``)."""
+    refine_lr: float = 0.003
+    """Learning rate of the refinement's Adam (m, and radians of the axis-angle, per step)."""
+    refine_keep: float = 0.005
+    """The refined cuboid replaces the selected one unless its inlier-count gain drops by more than this
+    share of the selected one's (0.005 = 0.5 %)."""
     prescore_points: int = 0
     """Fast path: if > 0, score all hypotheses on this many random points first and rescore only the
     best ``rescore_top`` on all points. 0 = exact scoring of every hypothesis on every point."""

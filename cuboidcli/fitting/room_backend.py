@@ -16,6 +16,7 @@ import torch
 from torch import Tensor
 
 from cuboidcli.fitting.backend import NOMINATED, PRUNE_MARGIN, ScoreParams, ScoringBackend
+from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.room import RoomPoints, refine_surface_adam, room_gains, room_params, room_values
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
@@ -26,7 +27,7 @@ NOMINATION_STEP = 8
 
 def refine_surface(
     points: Tensor, center: Tensor, half: Tensor, rotation: Tensor, a_min: float, a_max: float,
-    iters: int = 25, lr: float = 0.003,
+    iters: int = FitConfig.refine_iters, lr: float = FitConfig.refine_lr,
 ) -> tuple[Tensor, Tensor, Tensor]:  # fmt: skip
     """Adam on the mean squared distance of ``points`` (M, 3) to the surface of the cuboid (center (3,),
     half (3,), rotation (3, 3)), half-sizes kept in [a_min, a_max]; the best iterate. A room's points have
@@ -62,7 +63,7 @@ def refine_surface(
 
 def refine_surface_fused(
     points: Tensor, center: Tensor, half: Tensor, rotation: Tensor, a_min: float, a_max: float,
-    iters: int = 25, lr: float = 0.003,
+    iters: int = FitConfig.refine_iters, lr: float = FitConfig.refine_lr,
 ) -> tuple[Tensor, Tensor, Tensor]:  # fmt: skip
     """:func:`refine_surface` in one numba loop (the same Adam; the rotation's gradient by central
     differences): tensors in, float64 tensors out."""
@@ -109,8 +110,11 @@ class RoomBackend(ScoringBackend):
         boxes = (_np64(x) for x in (centers, half_sizes, rotations))
         return room_gains(room, _np64(state), *boxes, self._params(sp), prune_below)
 
-    def refine(self, points, center, half, rotation, a_min: float, a_max: float):
-        return refine_surface_fused(points, center, half, rotation, a_min, a_max)
+    def refine(
+        self, points, center, half, rotation, a_min: float, a_max: float,
+        iters: int = FitConfig.refine_iters, lr: float = FitConfig.refine_lr,
+    ):  # fmt: skip
+        return refine_surface_fused(points, center, half, rotation, a_min, a_max, iters, lr)
 
     def select_best(
         self, points, centers, half_sizes, rotations, state, sp: ScoreParams, generator,
@@ -137,13 +141,11 @@ _WARM = False
 
 
 def warm_up_room() -> None:
-    """Compile (or load from numba's cache) the room kernels of every visibility and the voxel-cell
-    sampler's, once per process, on tiny inputs."""
+    """Compile (or load from numba's cache) the room kernels of every visibility and the surface
+    refinement, once per process, on tiny inputs (the parts of a fit warm up their own kernels)."""
     global _WARM
     if _WARM:
         return
-    from cuboidcli.sampling.space import SpaceCells, space_minimal_sets
-
     p = np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0], [0.2, 0.1, 2.0]])
     c, a, R = np.array([[0.0, 0.0, 2.5]]), np.full((1, 3), 0.5), np.eye(3)[None]
     params = room_params(0.004, 5.0, 0.008)
@@ -151,7 +153,6 @@ def warm_up_room() -> None:
         room = RoomPoints.build(p, np.zeros_like(p), vis)
         room_gains(room, np.zeros(3), c, a, R, params)
         room_values(room, c, a, R, params)
-    space_minimal_sets(SpaceCells.of(p), torch.tensor([0]), 6, torch.Generator().manual_seed(0), (0.3,))
     t = torch.from_numpy(p)
     refine_surface_fused(
         t, t[0], torch.full((3,), 0.1, dtype=torch.float64), torch.eye(3, dtype=torch.float64), 1e-3, 1.0

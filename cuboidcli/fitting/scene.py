@@ -23,16 +23,17 @@ import numpy as np
 import torch
 
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.assign import assign_points
+from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.objects import SceneObject, group_objects
-from cuboidcli.fitting.pipeline import FitInfo, PreparedPoints, ProgressFn, fit_points
+from cuboidcli.fitting.pipeline import FitInfo, PreparedPoints, ProgressFn, fit_points, warm_up_parts
 from cuboidcli.fitting.room_backend import RoomBackend, warm_up_room
-from cuboidcli.fitting.winner import Alignment, cuboid_kind
+from cuboidcli.fitting.shell import cuboid_kind
 from cuboidcli.geometry.cloud import RoomUp, estimate_normals, free_side_normals, room_up, voxel_groups
 from cuboidcli.geometry.room import VISIBILITY, RoomPoints
-from cuboidcli.sampling import Sampler
-from cuboidcli.sampling.space import SpaceCells
+from cuboidcli.sampling import Sampler, SpaceCells
 from cuboidcli.solvers.base import CuboidSolver
 
 #: An upright slab whose top stays this far below the room's top (the 99th percentile of the points' heights)
@@ -152,6 +153,7 @@ def fit_scene(
         visibility = "plain"
     config = replace(config, max_cuboids=scene.max_cuboids)
     warm_up_room()
+    warm_up_parts(solver, sampler)
     t0 = time.perf_counter()
     voxel, means, inverse, first = fitting_voxels(points, scene.voxel_m, scene.fit_points)
     # fit in float32 like a frame; the room kernels read the same rounded coordinates
@@ -234,7 +236,7 @@ def low_walls_are_furniture(cuboids: list[Cuboid], points: np.ndarray, up: np.nd
     sofa or the side of a bed has the room on one side like a wall, but a wall reaches the room's top."""
     if len(points) == 0:
         return
-    room_top = float(np.percentile(points @ up, 99))
+    room_top = float(np.percentile(points @ up, ROBUST_PERCENTILES[1]))
     for c in cuboids:
         if c.kind == "wall" and c.top(up) < room_top - WALL_TOP_GAP_M:
             c.kind = "object"
@@ -251,8 +253,8 @@ def free_side_viewpoints(
 
 def _inside_point(points: np.ndarray, viewpoints: np.ndarray | None) -> np.ndarray:
     """A point inside the room to see its shell from: the cameras' mean position, else the middle of the
-    points' bounding box (robust to a few stray points: 1st and 99th percentiles)."""
+    points' bounding box (robust to a few stray points: :data:`~cuboidcli.fitting.box.ROBUST_PERCENTILES`)."""
     if viewpoints is not None and len(viewpoints):
         return np.asarray(viewpoints, dtype=np.float64).mean(0)
-    lo, hi = np.percentile(points, [1, 99], axis=0)
+    lo, hi = np.percentile(points, ROBUST_PERCENTILES, axis=0)
     return (lo + hi) / 2.0

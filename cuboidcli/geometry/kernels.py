@@ -17,6 +17,11 @@ from torch import Tensor
 SIDE_AXIS = (0, 0, 1, 1, 2, 2)
 SIDE_SIGN = (1.0, -1.0, 1.0, -1.0, 1.0, -1.0)
 
+INLIER_CUT = 0.5
+"""The inlier value that makes a point an inlier: f_I(d^2) = 0.5 exactly at d^2 = tau (:func:`inlier_fn`),
+so a point whose value f_OAI for a cuboid is at least this lies within sqrt(tau) of its surface and is not
+hidden by it. A state below it (``state < INLIER_CUT``) marks a point no selected cuboid explains yet."""
+
 
 def to_local(points: Tensor, centers: Tensor, rotations: Tensor) -> Tensor:
     """Points (N, 3) into each cuboid's frame, y_hat = R^T (y - t) (Eq. 1): (H, N, 3)."""

@@ -49,8 +49,27 @@ class Sampler(Protocol):
         """Returns (p (Q, N) rows summing to 1, q (Q,) summing to 1)."""
         ...
 
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the kernels drawing this sampler's minimal sets runs, once per
+        process; the estimator calls it before it times anything."""
+        ...
 
-class UniformSampler:
+
+class SamplerBase:
+    """What the samplers here share: minimal sets are drawn from their distributions by
+    :func:`draw_hypotheses`, whose localised sets run numba kernels."""
+
+    name: str
+
+    def warm_up(self) -> None:
+        """Compile the kernels of localised minimal sets
+        (:func:`~cuboidcli.sampling.proposals.warm_up_minimal_sets`), once per process."""
+        from cuboidcli.sampling.proposals import warm_up_minimal_sets
+
+        warm_up_minimal_sets()
+
+
+class UniformSampler(SamplerBase):
     """Every valid point equally likely: Sequential RANSAC's uniform sampling."""
 
     name = "uniform"
@@ -61,7 +80,7 @@ class UniformSampler:
         return p, torch.ones(1, dtype=torch.float64, device=ctx.points.device)
 
 
-class SequentialSampler:
+class SequentialSampler(SamplerBase):
     """Weights 1 - max(f_OAI(y, M), 0): points already explained are sampled less (the paper's
     Sequential RANSAC baseline with soft inlier removal)."""
 

@@ -63,6 +63,12 @@ class LearnedSampler:
 
         return cls(load_net(path, "sampler", net_from_checkpoint), device)
 
+    def warm_up(self) -> None:
+        """Compile the kernels of localised minimal sets, once per process (the network needs none)."""
+        from cuboidcli.sampling.proposals import warm_up_minimal_sets
+
+        warm_up_minimal_sets()
+
     def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
         depth, state, valid = (t.to(self.device) for t in grid_inputs(ctx))
         with torch.no_grad():

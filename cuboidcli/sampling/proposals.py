@@ -168,3 +168,29 @@ def ball_minimal_sets(
         out,
     )
     return torch.from_numpy(out)
+
+
+_WARM = False
+
+
+def warm_up_minimal_sets() -> None:
+    """Compile (or load from numba's cache) the kernels that draw localised minimal sets, once per process,
+    on tiny inputs: the ball in the image (:func:`ball_minimal_sets`) and the ball among voxel cells
+    (:func:`~cuboidcli.sampling.space.space_minimal_sets`). Every sampler's ``warm_up`` calls it."""
+    global _WARM
+    if _WARM:
+        return
+    from cuboidcli.sampling.space import SpaceCells, space_minimal_sets
+
+    ball_minimal_sets(
+        torch.tensor([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]]),
+        torch.tensor([0, 1]),
+        (1, 2),
+        torch.tensor([0]),
+        6,
+        torch.Generator().manual_seed(0),
+        focal_cells=(60.0, 60.0),
+    )
+    p = np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0], [0.2, 0.1, 2.0]])
+    space_minimal_sets(SpaceCells.of(p), torch.tensor([0]), 6, torch.Generator().manual_seed(0), (0.3,))
+    _WARM = True

@@ -30,6 +30,11 @@ class CuboidSolver(Protocol):
 
     def __call__(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]: ...
 
+    def warm_up(self) -> None:
+        """Compile (or load from numba's cache) the kernels the solver runs, once; the estimator calls it
+        before it times anything. A solver without compiled kernels does nothing."""
+        ...
+
 
 def solve_upright(
     solver: CuboidSolver, minimal_sets: Tensor, frame: Tensor, fixed: bool = False

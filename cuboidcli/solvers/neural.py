@@ -106,6 +106,9 @@ class NeuralSolver:
         parts = list(self._pool.map(lambda part: self._forward(part, CHUNK_SETS), x.tensor_split(workers)))
         return tuple(torch.cat(p) for p in zip(*parts, strict=True))
 
+    def warm_up(self) -> None:
+        """Nothing to compile: the network is ready once loaded."""
+
     def __call__(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         if minimal_sets.ndim != 3 or minimal_sets.shape[-1] != 3:
             raise ValueError(f"minimal_sets must be (H, C, 3), got {tuple(minimal_sets.shape)}")

@@ -61,6 +61,9 @@ class OnnxSolver:
     def _run_chunk(self, sets: np.ndarray) -> list[np.ndarray]:
         return self.session.run(list(OUTPUTS), {INPUT: sets})  # InferenceSession.run is thread-safe
 
+    def warm_up(self) -> None:
+        """Nothing to compile: onnxruntime's session is ready once loaded."""
+
     def __call__(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         if minimal_sets.ndim != 3 or minimal_sets.shape[-1] != 3:
             raise ValueError(f"minimal_sets must be (H, C, 3), got {tuple(minimal_sets.shape)}")

@@ -15,9 +15,10 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import NONE, OCCLUDED, assign_points
 from cuboidcli.fitting.backend import HybridBackend, NumbaBackend, ScoreParams, TorchBackend, backend_for
+from cuboidcli.fitting.box import values_one
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_points, grid_assignment, prepare_points
-from cuboidcli.fitting.winner import values_one
+from cuboidcli.fitting.pipeline import fit_points, prepare_points
+from cuboidcli.fitting.prepare import grid_assignment
 from cuboidcli.sampling import SequentialSampler
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver
@@ -237,18 +238,18 @@ def test_cpu_fit_with_torch_gives_the_cuboids_of_numba(room_depth, nyu_camera, p
 
 def test_ensure_compiled_compiles_every_kernel_of_the_numba_backend():
     """In a fresh process, :func:`ensure_compiled` leaves no kernel of the numba backend, the solver or the
-    sampler to compile during the first fit."""
+    sampler to compile during the first fit: the parts compile their own (``warm_up``)."""
     code = (
         "from cuboidcli.fitting.pipeline import ensure_compiled\n"
-        "from cuboidcli.geometry import fused\n"
+        "from cuboidcli.geometry import adam, fused\n"
         "from cuboidcli.solvers import adam_fused, init_fused\n"
         "from cuboidcli.solvers.numerical import NumericalSolver\n"
-        "from cuboidcli.sampling import proposals\n"
-        "kernels = [fused._gains, fused._gains_cells, fused._values, adam_fused.refine_adam,"
+        "from cuboidcli.sampling import SequentialSampler, proposals, space\n"
+        "kernels = [fused._gains, fused._gains_cells, fused._values, adam.refine_adam,"
         " adam_fused.adam_solve, adam_fused.rotation_matrices, init_fused.pca_boxes,"
-        " init_fused.upright_boxes, proposals._ball_sets]\n"
+        " init_fused.upright_boxes, proposals._ball_sets, space._space_sets]\n"
         "assert not any(k.signatures for k in kernels)\n"
-        "ensure_compiled(NumericalSolver())\n"
+        "ensure_compiled(NumericalSolver(), SequentialSampler())\n"
         "print([len(k.signatures) for k in kernels])\n"
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)

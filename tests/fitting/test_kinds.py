@@ -1,4 +1,4 @@
-"""What each fitted box is: floor, wall, ceiling or object (fitting/winner.py cuboid_kind), decided once per
+"""What each fitted box is: floor, wall, ceiling or object (fitting/shell.py cuboid_kind), decided once per
 fit against gravity and the room-shell rule, written to the JSON and read back."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import pytest
 
 import cuboidcli as cb
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.winner import cuboid_kind
+from cuboidcli.fitting.shell import cuboid_kind
 
 
 def test_the_rendered_room_gets_floor_walls_and_an_object(room_depth, nyu_camera):

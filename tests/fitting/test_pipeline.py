@@ -99,3 +99,30 @@ def test_sequential_sampler_and_plain_inlier_baseline(room_depth, nyu_camera):
     assert sum(info.gains) == pytest.approx(plain_count, rel=1e-6)
     assert oai_count < plain_count - 0.1 * info.n_points
     assert len(simple_room()) == 5
+
+
+def test_the_estimator_warms_up_the_parts_it_is_given(room_depth, nyu_camera):
+    """A fit on the CPU asks its solver and its sampler to compile their own kernels (``warm_up``) before
+    it times anything; a part without the method has nothing to compile."""
+    from cuboidcli.fitting.pipeline import fit_depth, warm_up_parts
+    from cuboidcli.sampling import SequentialSampler
+    from cuboidcli.solvers.numerical import NumericalSolver
+
+    calls = []
+
+    class Solver(NumericalSolver):
+        def warm_up(self) -> None:
+            calls.append("solver")
+            super().warm_up()
+
+    class Sampler(SequentialSampler):
+        def warm_up(self) -> None:
+            calls.append("sampler")
+            super().warm_up()
+
+    config = FitConfig(hypotheses=64, max_cuboids=1)
+    fit_depth(room_depth[0], nyu_camera, config, solver=Solver(), sampler=Sampler())
+    assert calls == ["solver", "sampler"]
+    calls.clear()
+    warm_up_parts(None, object(), Sampler())
+    assert calls == ["sampler"]

@@ -13,8 +13,10 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.presets import resolve
 from cuboidcli.factories import make_solver
 from cuboidcli.fitting.backend import ScoreParams, gains_torch, values_torch
+from cuboidcli.fitting.box import Box, Scored, StepContext
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import gain_upper_bound, miss_probability, prepare_points
+from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.search import gain_upper_bound, miss_probability
 from cuboidcli.fitting.winner import grow_cuboid
 from cuboidcli.io.depth import read_depth
 from cuboidcli.sampling import SequentialSampler
@@ -81,7 +83,10 @@ def test_grow_cuboid_pushes_faces_to_where_the_surface_ends(nyu_camera):
     a = torch.tensor([[0.2, 0.15, 0.025]], dtype=torch.float64)
     R = torch.eye(3, dtype=torch.float64)[None]
     g0 = float(gains_torch(pts, c, a, R, state, sp)[0])
-    c2, a2, values, g2 = grow_cuboid(pts, c, a, R, state, g0, sp, config)
+    ctx = StepContext.of(pts, state, config, sp)
+    patch = Box(c, a, R)
+    grown = grow_cuboid(Scored(patch, ctx.values(patch), g0), ctx)
+    c2, a2, values, g2 = grown.box.center, grown.box.half, grown.values, grown.gain
     assert g2 > 4 * g0
     assert float(a2[0, 2]) == pytest.approx(0.025)  # the slab stays thin
     lo, hi = (c2 - a2)[0], (c2 + a2)[0]
@@ -92,8 +97,8 @@ def test_grow_cuboid_pushes_faces_to_where_the_surface_ends(nyu_camera):
     assert ((hi[:2] - true_hi[:2]).abs() <= config.grow_step_m + 0.02).all(), (hi, true_hi)
     assert torch.allclose(values, values_torch(pts, c2, a2, R, sp)[0])
     # no rounds: the gain and box stay
-    c3, a3, _, g3 = grow_cuboid(pts, c2, a2, R, state, g2, sp, replace(config, grow_rounds=0))
-    assert g3 == g2 and torch.equal(a3, a2)
+    still = grow_cuboid(grown, StepContext.of(pts, state, replace(config, grow_rounds=0), sp))
+    assert still.gain == g2 and torch.equal(still.box.half, a2)
 
 
 def test_growing_lets_one_cuboid_explain_a_whole_wall(nyu_camera):

@@ -1,6 +1,6 @@
-"""Walls, floor and ceiling on the room's axes (fitting/winner.py): which slabs are the room's shell, the
-plane most of a bent wall's points lie on, trimming a turned wall off a doorway, and the slab's normal
-matched first when it is turned onto the room's axes."""
+"""Walls, floor and ceiling on the room's axes (fitting/shell.py, fitting/align.py): which slabs are the
+room's shell, the plane most of a bent wall's points lie on, trimming a turned wall off a doorway, and the
+slab's normal matched first when it is turned onto the room's axes."""
 
 from __future__ import annotations
 
@@ -8,19 +8,14 @@ import numpy as np
 import pytest
 import torch
 
-from cuboidcli.fitting.winner import (
-    Alignment,
-    _plane_sweep,
-    align_winner,
-    gain_of,
-    is_room_slab,
-    shrink_cuboid,
-    values_one,
-)
+from cuboidcli.fitting.align import Alignment, align_winner
+from cuboidcli.fitting.refit import plane_sweep
+from cuboidcli.fitting.shell import is_room_slab
+from cuboidcli.fitting.winner import shrink_cuboid
 from cuboidcli.geometry.gravity import manhattan_rotation
 from cuboidcli.synth import render_boxes
 from tests.conftest import simple_room
-from tests.fitting.test_winner_shape import CFG, SP, _t
+from tests.fitting.test_winner_shape import _box, _ctx
 
 UP = np.array([0.0, -1.0, 0.0])  # camera y points down
 ROOM_AXES = np.stack([UP, [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]], 1)
@@ -64,11 +59,11 @@ def test_the_sweep_finds_the_plane_most_open_points_lie_on():
     near, far = _wall(4.5, x=(-1.5, 0.3)), _wall(4.7, x=(-0.3, 1.5))  # 60 % / 40 % of a stepped wall
     pts = np.concatenate([near, far])
     state = np.zeros(len(pts))
-    got = _plane_sweep(pts, state, pts, np.eye(3), 2)
+    got = plane_sweep(pts, state, pts, np.eye(3), 2)
     assert len(got) == len(near) and np.allclose(got[:, 2], 4.5)
     # points already explained are not counted: then the far part is the best plane
     state[: len(near)] = 1.0
-    got = _plane_sweep(pts, state, pts, np.eye(3), 2)
+    got = plane_sweep(pts, state, pts, np.eye(3), 2)
     assert len(got) == len(far) and np.allclose(got[:, 2], 4.7)
 
 
@@ -77,10 +72,12 @@ def test_a_wall_turned_over_a_doorway_is_trimmed_off_it():
     door = _wall(6.5, x=(0.9, 1.5), y=(-1.2, 1.2))  # seen through a doorway right of the wall
     pts = torch.from_numpy(np.concatenate([wall, door]))
     state = torch.zeros(len(pts), dtype=torch.float64)
-    c, a, r = _t([0.0, 0.0, 4.5], [1.5, 1.2, 0.01], np.eye(3))  # covers the doorway
-    g = gain_of(values_one(pts, c, a, r, SP), state)
-    c2, a2, _, g2 = shrink_cuboid(pts, c, a, r, state, g, SP, CFG)
-    assert g2 > g + 0.5 * len(door)  # the points seen through the doorway no longer count against it
+    ctx = _ctx(pts, state)
+    covering = ctx.score(_box([0.0, 0.0, 4.5], [1.5, 1.2, 0.01], np.eye(3)))  # covers the doorway
+    shrunk = shrink_cuboid(covering, ctx)
+    c2, a2 = shrunk.box.center, shrunk.box.half
+    # the points seen through the doorway no longer count against it
+    assert shrunk.gain > covering.gain + 0.5 * len(door)
     right_edge = float(c2[0, 0] + a2[0, 0])
     assert 0.45 < right_edge < 0.9  # it ends between the wall's end and the doorway
     assert float(c2[0, 0] - a2[0, 0]) == pytest.approx(-1.5)  # the left edge stays
@@ -113,19 +110,18 @@ beyond it. As part of the room's shell it
     door = _wall(6.5, x=(0.9, 1.2), y=(-0.6, 0.6))
     pts = torch.from_numpy(np.concatenate([wall, door, _floor()]))
     state = torch.zeros(len(pts), dtype=torch.float64)
-    c, a, r = _t([-0.5, 0.0, 4.5], [1.0, 0.6, 0.01], _rx(10.0))  # the free fit: the tilted plane exactly
-    v = values_one(pts, c, a, r, SP)
-    g = gain_of(v, state)
+    box = _box([-0.5, 0.0, 4.5], [1.0, 0.6, 0.01], _rx(10.0))  # the free fit: the tilted plane exactly
+    free = _ctx(pts, state).score(box)
     alignment = Alignment("manhattan", UP, ROOM_AXES)
-    c2, a2, r2, _, g2, kind = align_winner(pts, c, a, r, v, state, g, SP, CFG, alignment)
-    assert kind == "manhattan"
-    assert abs(r2[0].numpy()[:, int(np.argmin(a2[0].numpy()))] @ [0.0, 0.0, 1.0]) == pytest.approx(1.0)
-    assert 0.5 * g <= g2 < 0.8 * g  # it kept what the room's shell must keep, not what other boxes must
+    aligned = align_winner(free, _ctx(pts, state), alignment)
+    assert aligned.kind == "manhattan"
+    a2, r2 = aligned.box.half[0].numpy(), aligned.box.rotation[0].numpy()
+    assert abs(r2[:, int(np.argmin(a2))] @ [0.0, 0.0, 1.0]) == pytest.approx(1.0)
+    # it kept what the room's shell must keep, not what other boxes must
+    assert 0.5 * free.gain <= aligned.gain < 0.8 * free.gain
     # with points beyond it (the same wall in front of a deeper room) it is furniture, not the shell
     behind = _wall(6.0, x=(-1.5, 0.5), y=(0.8, 1.4))
     pts = torch.cat([pts, torch.from_numpy(behind)])
     state = torch.zeros(len(pts), dtype=torch.float64)
-    v = values_one(pts, c, a, r, SP)
-    g = gain_of(v, state)
-    *_, kind = align_winner(pts, c, a, r, v, state, g, SP, CFG, alignment)
-    assert kind != "manhattan"
+    ctx = _ctx(pts, state)
+    assert align_winner(ctx.score(box), ctx, alignment).kind != "manhattan"

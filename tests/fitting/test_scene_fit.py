@@ -196,7 +196,7 @@ def test_seen_from_inside_a_room_a_wall_is_a_wall_and_a_screen_is_not():
     plane of the wall beside the door but not behind that wall, is no reason to doubt it), unless a quarter
     of the room lies beyond its plane: then it stands in the room (a screen whose back hides the wall
     behind it)."""
-    from cuboidcli.fitting.winner import cuboid_kind
+    from cuboidcli.fitting.shell import cuboid_kind
 
     room = scanned_room()
     down, inside = np.array([0.0, 0.0, -1.0]), np.array([2.0, 1.5, 1.25])

@@ -1,6 +1,7 @@
-"""The shape of a winner after selection (fitting/winner.py): a slab is turned to the tightest rectangle of
-its points, it may thicken into the faces that continue past its edges, re-fitted slabs keep their points
-on a face, and a slab that cannot be aligned stands with upright edges in its own plane."""
+"""The shape of a winner after selection (fitting/winner.py, fitting/refit.py, fitting/align.py): a slab is
+turned to the tightest rectangle of its points, it may thicken into the faces that continue past its edges,
+re-fitted slabs keep their points on a face, and a slab that cannot be aligned stands with upright edges in
+its own plane."""
 
 from __future__ import annotations
 
@@ -10,17 +11,12 @@ import numpy as np
 import pytest
 import torch
 
+from cuboidcli.fitting.align import Alignment, edge_to_vertical
 from cuboidcli.fitting.backend import ScoreParams
+from cuboidcli.fitting.box import Box, StepContext, values_one
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.winner import (
-    Alignment,
-    _refit_box,
-    edge_to_vertical,
-    gain_of,
-    grow_cuboid,
-    square_slab,
-    values_one,
-)
+from cuboidcli.fitting.refit import refit_box
+from cuboidcli.fitting.winner import grow_cuboid, square_slab
 from cuboidcli.synth import render_boxes
 from tests.conftest import simple_room
 
@@ -36,6 +32,14 @@ def _yaw_z(deg: float) -> np.ndarray:
 
 def _t(*arrays):
     return tuple(torch.from_numpy(np.asarray(x, dtype=np.float64))[None] for x in arrays)
+
+
+def _box(*arrays) -> Box:
+    return Box(*_t(*arrays))
+
+
+def _ctx(pts, state, config: FitConfig = CFG) -> StepContext:
+    return StepContext.of(pts, state, config, SP)
 
 
 @pytest.fixture(scope="module")
@@ -57,32 +61,31 @@ def cabinet_points(nyu_camera):
 
 def test_a_slab_at_a_random_in_plane_angle_is_turned_to_the_tightest_rectangle(cabinet_points):
     pts, state = cabinet_points
+    ctx = _ctx(pts, state)
     # the cabinet's front as a thin slab on the face plane, turned 30 degrees in it (as six points leave it)
-    c, a, r = _t([1.2, 0.9, 3.6], [0.45, 0.45, 0.005], _yaw_z(30.0))
-    v = values_one(pts, c, a, r, SP)
-    out = square_slab(pts, c, a, r, v, state, CFG)
+    out = square_slab(ctx.score(_box([1.2, 0.9, 3.6], [0.45, 0.45, 0.005], _yaw_z(30.0))), ctx)
     assert out is not None
-    c2, a2, r2 = (x[0].numpy() for x in out)
+    c2, a2, r2 = out.numpy()
     # its in-plane axes are the cabinet's edges again (x and y, up to sign and order), the normal kept
     assert abs(r2[:, 2] @ [0, 0, 1.0]) == pytest.approx(1.0, abs=1e-9)
     assert max(abs(r2[0, 0]), abs(r2[1, 0])) > np.cos(np.deg2rad(2.5))
     # and its points lie on its front face, which sits on the cabinet's front
     assert c2[2] - a2[2] == pytest.approx(3.6, abs=0.01)
     # a slab already on the edges is left as it is
-    c, a, r = _t([1.2, 0.9, 3.6], [0.4, 0.5, 0.005], np.eye(3))
-    assert square_slab(pts, c, a, r, values_one(pts, c, a, r, SP), state, CFG) is None
+    assert square_slab(ctx.score(_box([1.2, 0.9, 3.6], [0.4, 0.5, 0.005], np.eye(3))), ctx) is None
 
 
 def test_a_front_slab_thickens_into_the_top_face(cabinet_points):
     pts, state = cabinet_points
-    c, a, r = _t([1.2, 0.9, 3.6], [0.4, 0.5, 0.005], np.eye(3))
-    g = gain_of(values_one(pts, c, a, r, SP), state)
-    _, a_thick, _, g_thick = grow_cuboid(pts, c, a, r, state, g, SP, CFG)
-    _, a_thin, _, g_thin = grow_cuboid(pts, c, a, r, state, g, SP, replace(CFG, grow_thickness=False))
-    assert a_thin[0, 2] == pytest.approx(0.005) and g_thin == pytest.approx(g, abs=1.0)
+    ctx = _ctx(pts, state)
+    front = ctx.score(_box([1.2, 0.9, 3.6], [0.4, 0.5, 0.005], np.eye(3)))
+    thick = grow_cuboid(front, ctx)
+    thin = grow_cuboid(front, _ctx(pts, state, replace(CFG, grow_thickness=False)))
+    assert thin.box.half[0, 2] == pytest.approx(0.005) and thin.gain == pytest.approx(front.gain, abs=1.0)
     # the top face (seen from above) is won too: the box reaches back over the cabinet's depth
-    assert g_thick > g + 10.0
-    assert 0.2 < float(a_thick[0, 2]) < 0.5
+    assert thick.gain > front.gain + 10.0
+    assert 0.2 < float(thick.box.half[0, 2]) < 0.5
+    assert torch.equal(front.box.half, _box([1.2, 0.9, 3.6], [0.4, 0.5, 0.005], np.eye(3)).half)  # input kept
 
 
 def test_refitted_slab_keeps_its_points_on_a_face():
@@ -92,7 +95,7 @@ def test_refitted_slab_keeps_its_points_on_a_face():
     for side in (1.0, -1.0):
         half = np.array([1.0, 0.8, 0.05])
         center = np.array([0.0, 0.0, 3.0 - side * 0.05])  # the points on the +z or -z face
-        cn, an = _refit_box(p, center, half, np.eye(3), 1e-3)
+        cn, an = refit_box(p, center, half, np.eye(3), 1e-3)
         face = cn[2] + side * an[2]
         assert face == pytest.approx(3.0, abs=1e-6), side
         assert an[2] == pytest.approx(0.05)
@@ -115,3 +118,26 @@ def test_edge_to_vertical_turns_a_tilted_slab_in_its_plane():
     # a level slab without a room frame has no direction to turn to
     assert edge_to_vertical(np.eye(3)[:, [0, 2, 1]] * [1, 1, -1], 2, Alignment("gravity", up)) is None
     assert edge_to_vertical(rot, -1, Alignment("gravity", up)) is None
+
+
+def test_the_refinement_runs_with_the_configured_settings(cabinet_points):
+    """``refine_iters`` and ``refine_lr`` reach the backend's refinement; ``refine_keep`` decides whether the
+    refined box replaces the selected one (a negative share: never)."""
+    from cuboidcli.fitting.backend import NumbaBackend
+    from cuboidcli.fitting.winner import refine_winner
+
+    pts, state = cabinet_points
+    seen = []
+
+    class Spy(NumbaBackend):
+        def refine(self, points, center, half, rotation, a_min, a_max, iters=0, lr=0.0):
+            seen.append((iters, lr))
+            return super().refine(points, center, half, rotation, a_min, a_max, iters, lr)
+
+    config = replace(CFG, grow_rounds=0, refine_iters=7, refine_lr=0.01)
+    ctx = StepContext.of(pts, state, config, SP, Spy())
+    front = ctx.score(_box([1.2, 0.9, 3.6], [0.4, 0.5, 0.02], np.eye(3)))
+    refine_winner(front, ctx)
+    assert seen == [(7, 0.01)]
+    never = StepContext.of(pts, state, replace(config, refine_keep=-1.0), SP, Spy())
+    assert refine_winner(front, never) is front

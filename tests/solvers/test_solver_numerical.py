@@ -126,9 +126,9 @@ def test_backends_agree_and_keep_best_iterate_per_hypothesis():
 
 
 def test_refinement_gradient_equals_autograd_and_removes_slab_bias():
-    from cuboidcli.fitting.backend import refine_cuboid_fused
+    from cuboidcli.fitting.refine import refine_cuboid_fused
     from cuboidcli.geometry import kernels as K
-    from cuboidcli.solvers.adam_fused import oa_objective_and_grad
+    from cuboidcli.geometry.adam import oa_objective_and_grad
 
     g = torch.Generator().manual_seed(5)
     for _ in range(4):

@@ -1,5 +1,5 @@
 """Upright (yaw-only) hypotheses: the numerical solver's solve_upright, the projection any other solver's
-boxes get (solvers/base.py), and their share of each batch under an alignment (fitting/pipeline.py)."""
+boxes get (solvers/base.py), and their share of each batch under an alignment (fitting/search.py)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 import torch
 
+from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import _solve
-from cuboidcli.fitting.winner import Alignment
+from cuboidcli.fitting.search import solve_sets
 from cuboidcli.solvers.adam_fused import adam_solve
 from cuboidcli.solvers.base import solve_upright, upright_nearest
 from cuboidcli.solvers.numerical import NumericalSolver
@@ -118,13 +118,13 @@ def test_a_share_of_each_batch_is_upright(mode, axes):
     room = np.stack([UP / np.linalg.norm(UP), frame[:, 0], frame[:, 1]], 1) if axes else None
     al = Alignment(mode, UP / np.linalg.norm(UP), room)
     sets = _box_sets(frame, 25.0, n_sets=40)
-    _, _, r = _solve(NumericalSolver(), sets, FitConfig(upright_fraction=0.5), al)
+    _, _, r = solve_sets(NumericalSolver(), sets, FitConfig(upright_fraction=0.5), al)
     err = _up_column_error(r, al.up)
     assert (err < 1e-9).sum() >= 20  # the last half at least (free boxes may be upright by chance)
     assert np.all(err[20:] < 1e-9)
     if mode == "manhattan":  # a quarter on the room's axes exactly
         assert np.allclose(r[20:30].numpy(), al.frame()[None], atol=1e-12)
-    _, _, r0 = _solve(NumericalSolver(), sets, FitConfig(upright_fraction=0.0), al)
+    _, _, r0 = solve_sets(NumericalSolver(), sets, FitConfig(upright_fraction=0.0), al)
     assert (_up_column_error(r0, al.up) > 1e-6).sum() > 30  # free boxes are not upright
 
 
@@ -171,8 +171,8 @@ def test_upright_boxes_are_solved_from_the_first_points_of_their_sets():
         "manhattan", UP / np.linalg.norm(UP), np.stack([UP / np.linalg.norm(UP), frame[:, 0], frame[:, 1]], 1)
     )
     sets = _box_sets(frame, 25.0, n_sets=40)
-    _solve(Spy(), sets, FitConfig(upright_fraction=0.5, upright_set_size=4), al)
+    solve_sets(Spy(), sets, FitConfig(upright_fraction=0.5, upright_set_size=4), al)
     assert seen == [("free", 6), ("fixed", 4), ("yaw", 4)]
     seen.clear()
-    _solve(Spy(), sets, FitConfig(upright_fraction=0.5, upright_set_size=6), al)
+    solve_sets(Spy(), sets, FitConfig(upright_fraction=0.5, upright_set_size=6), al)
     assert seen == [("free", 6), ("fixed", 6), ("yaw", 6)]
