@@ -230,8 +230,8 @@ def _at_least_1(value) -> bool:
 
 _AT_LEAST_1 = Check("{name} must be at least 1 (got {value})", ok=_at_least_1)
 
-#: The check of every setting that has one: the only place FitConfig's values are checked. Messages are
-#: one line; the command line prints them with the option's flag as the name.
+#: The check of every setting that has one, the only one of that setting (:meth:`FitConfig.check` adds the
+#: one across settings). Messages are one line; the command line prints them with the flag as the name.
 CHECKS: dict[str, Check] = {
     "hypotheses": _AT_LEAST_1,
     "max_cuboids": _AT_LEAST_1,

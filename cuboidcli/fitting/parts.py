@@ -93,7 +93,7 @@ def names(role: str) -> tuple[str, ...]:
 def or_list(words) -> str:
     """``a, b or c``."""
     words = list(words)
-    return words[0] if len(words) == 1 else f"{', '.join(words[:-1])} or {words[-1]}"
+    return f"{', '.join(words[:-1])} or {words[-1]}" if len(words) > 1 else "".join(words)
 
 
 def find(role: str, name: str) -> Part:

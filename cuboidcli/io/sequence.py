@@ -193,7 +193,7 @@ def _posed_files(root: Path, notes: list[str], skip_nonfinite: bool) -> list[Seq
 def _read_scannet(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Camera | None]:
     frames = _posed_files(root, notes, skip_nonfinite=True)
     k = _read_matrix(root / "intrinsic" / "intrinsic_depth.txt")
-    return frames, Camera(*_focal_centre(k), depth_scale=0.001, source="intrinsic_depth.txt")
+    return frames, Camera(k[0, 0], k[1, 1], k[0, 2], k[1, 2], depth_scale=0.001, source="intrinsic_depth.txt")
 
 
 def _read_plain(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Camera | None]:
@@ -225,13 +225,8 @@ def _read_redwood(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Ca
             size = (int(d["width"]), int(d["height"])) if "width" in d else (0, 0)
         except (ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError):
             continue  # not an Open3D camera file
-        return frames, Camera(*_focal_centre(k), *size, d.get("depth_scale"), str(js))
+        return frames, Camera(k[0, 0], k[1, 1], k[0, 2], k[1, 2], *size, d.get("depth_scale"), str(js))
     return frames, None
-
-
-def _focal_centre(k: np.ndarray) -> tuple[float, float, float, float]:
-    """fx, fy, cx, cy of a 3x3 intrinsic matrix."""
-    return float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2])
 
 
 def _png_size(path: Path) -> tuple[int, int] | None:
@@ -294,7 +289,7 @@ def read_sequence(
         )
     if depth_scale is None:
         depth_scale = next((d for d in (intr.depth_scale, layout_scale) if d is not None), 0.001)
-    camera = Camera(float(intr.fx), float(intr.fy), float(intr.cx), float(intr.cy), *size, source=intr.source)
+    camera = Camera(float(intr.fx), float(intr.fy), float(intr.cx), float(intr.cy), *size)
     return Sequence(root, layout, frames, camera, float(depth_scale), notes)
 
 
