@@ -28,37 +28,14 @@ import numpy as np
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.config import FitConfig, resolve_device
+from cuboidcli.fitting.parts import SAMPLERS as SAMPLERS  # the names the estimator accepts, registered
+from cuboidcli.fitting.parts import SOLVERS as SOLVERS  # in cuboidcli.fitting.parts
+from cuboidcli.io.depth import read_camera as read_camera  # cb.read_camera
 from cuboidcli.io.result import FitResult
 
 #: FitConfig fields a caller may set by keyword (``cb.fit(..., hypotheses=1024)``); device is separate.
 SETTINGS = tuple(f.name for f in dataclasses.fields(FitConfig) if f.name != "device")
-#: Names the estimator accepts.
-SAMPLERS = ("sequential", "learned", "local", "uniform")
-SOLVERS = ("numerical", "neural", "onnx")
-
-
-def resolve_device(device: str) -> str:
-    """``auto`` -> cuda if available else cpu; ``cuda`` without a GPU is an error (ValueError)."""
-    import torch
-
-    if device == "auto":
-        return "cuda" if torch.cuda.is_available() else "cpu"
-    if device not in ("cpu", "cuda"):
-        raise ValueError(f"device {device!r}: choose auto, cpu or cuda")
-    if device == "cuda" and not torch.cuda.is_available():
-        raise ValueError("device 'cuda': no CUDA device is available; use 'cpu' or 'auto'")
-    return device
-
-
-def _check_config(config: FitConfig) -> None:
-    if config.sampler not in SAMPLERS:
-        raise ValueError(f"sampler {config.sampler!r}: choose {', '.join(SAMPLERS)}")
-    if config.solver not in SOLVERS:
-        raise ValueError(f"solver {config.solver!r}: choose {', '.join(SOLVERS)}")
-    for name in ("hypotheses", "max_cuboids", "grid_step", "min_set", "upright_set_size", "fit_points"):
-        if getattr(config, name) is not None and getattr(config, name) < 1:
-            raise ValueError(f"{name} must be at least 1 (got {getattr(config, name)})")
 
 
 @dataclass(repr=False)
@@ -215,14 +192,12 @@ class Fitter:
         if unknown:
             raise TypeError(f"unknown setting {unknown[0]!r}; settings are the FitConfig fields: {SETTINGS}")
         self.config = replace(config or FitConfig(), **settings, device=resolve_device(device))
-        _check_config(self.config)
-        if weights is None:  # the shipped bundle that matches the solver
-            self.weights = default_weights_dir(self.config.solver)
-        else:
-            self.weights = shipped_path(weights)
+        self.config.check()
+        # No weights given: the shipped bundle that matches the solver.
+        self.weights = default_weights_dir(self.config.solver) if weights is None else shipped_path(weights)
         self.onnx = None if onnx is None else Path(onnx)
         self.solver = make_solver(self.config, self.weights, self.onnx, self.config.device)
-        self.sampler = make_sampler(self.config.sampler, self.weights, self.config.device)
+        self.sampler = make_sampler(self.config.sampler, self.weights, self.config.device, self.config)
         if self.config.device == "cpu":
             ensure_compiled(self.solver)
 
@@ -239,16 +214,15 @@ class Fitter:
         height of 0 take the depth map's). ``rgb`` (H, W, 3) uint8 only colours the outputs. ``seed``
         overrides the configured one. ``progress(step, cuboids, gain)`` is called after every step.
         Raises ValueError for unusable input (no valid depth, a unit that looks wrong, mismatched sizes)."""
-        from cuboidcli.io.depth import Intrinsics, check_inputs, warn_all
+        from cuboidcli.io.depth import check_inputs, warn_all
 
         depth_m = np.asarray(depth_m)
         if depth_m.ndim != 2 or not np.issubdtype(depth_m.dtype, np.number):
             raise ValueError(f"depth_m must be a 2-D array of metres, got {depth_m.shape} {depth_m.dtype}")
         depth_m = np.where(valid_depth(depth_m), depth_m, 0.0).astype(np.float32)
         h, w = depth_m.shape
-        camera = _sized(camera, w, h)
-        intr = Intrinsics(camera.fx, camera.fy, camera.cx, camera.cy, source="api")
-        warn_all(check_inputs(depth_m, intr, None if rgb is None else np.shape(rgb)))
+        camera = camera.for_image(w, h)
+        warn_all(check_inputs(depth_m, camera, None if rgb is None else np.shape(rgb)))
         meta = {
             "depth": None,
             "image": None,
@@ -280,11 +254,9 @@ class Fitter:
         from cuboidcli.factories import DepthModelOptions
         from cuboidcli.frame import load_frame
         from cuboidcli.io.depth import warn_all
-        from cuboidcli.weights import shipped_path
+        from cuboidcli.weights import depth_model_path
 
-        model = depth_model
-        if model is not None and not str(model).startswith("hf:"):
-            model = str(shipped_path(model))
+        model = depth_model_path(depth_model)
         opts = DepthModelOptions(model, device=self.config.device, camera_height_m=camera_height_m)
         frame = load_frame(None, path, intrinsics, preset, depth_model=opts)
         warn_all(frame.notes)
@@ -306,8 +278,9 @@ class Fitter:
         )
         if depth_seconds is not None:
             info.add_depth_time(depth_seconds)
-        extra = {"weights": _str_or_none(self.weights), "onnx": _str_or_none(self.onnx)}
-        record = make_result(camera, cuboids, info, config, meta, self.solver.name, self.sampler.name, extra)
+        record = make_result(
+            camera, cuboids, info, config, meta, self.solver.name, self.sampler.name, self._files()
+        )
         return Result(record, info, depth_m, rgb)
 
     def fit_scene(
@@ -346,12 +319,15 @@ class Fitter:
             viewpoints=cloud.viewpoints, up_hint=data.up_hint, progress=progress,
         )  # fmt: skip
         info.fit.timing_s = {"load": round(data.load_seconds, 6), **info.timing_s}
-        extra = {"weights": _str_or_none(self.weights), "onnx": _str_or_none(self.onnx)}
         record = scene_result(
-            data, cuboids, info, self.config, scene, self.solver.name, self.sampler.name, path, extra
+            data, cuboids, info, self.config, scene, self.solver.name, self.sampler.name, path, self._files()
         )
         record.timing_s = info.fit.timing_s
         return SceneResult(record, info, data)
+
+    def _files(self) -> dict:
+        """The weights and ONNX files a result records."""
+        return {"weights": _str_or_none(self.weights), "onnx": _str_or_none(self.onnx)}
 
 
 def fit(
@@ -369,17 +345,6 @@ def fit(
     :class:`Fitter` once instead. Settings and defaults as :class:`Fitter` (those of ``cuboids fit``)."""
     fitter = Fitter(weights=weights, onnx=onnx, device=device, **settings)
     return fitter.fit(depth_m, camera, rgb=rgb, progress=progress)
-
-
-def _sized(camera: Camera, width: int, height: int) -> Camera:
-    if camera.width == 0 and camera.height == 0:
-        return camera.with_size(width, height)
-    if (camera.width, camera.height) != (width, height):
-        raise ValueError(
-            f"the depth map is {width}x{height} but the camera is {camera.width}x{camera.height}; "
-            "give the camera of this image (or leave width and height out)"
-        )
-    return camera
 
 
 def _str_or_none(p) -> str | None:
@@ -403,31 +368,6 @@ def read_rgb(path: str | os.PathLike) -> np.ndarray:
     return _read(path)
 
 
-def read_camera(
-    intrinsics: str | os.PathLike | None = None,
-    *,
-    preset: str | None = None,
-    frame: str | None = None,
-    width: int = 0,
-    height: int = 0,
-) -> Camera:
-    """Camera intrinsics as ``cuboids fit -K`` reads them: ``"fx,fy,cx,cy"`` in pixels or a JSON file (keys
-    fx, fy, cx, cy, optionally width, height; or a mapping from frame names to such entries, ``frame``
-    picks one), or ``preset`` nyu, tum or scannet. ``width``/``height`` override the file's (0: as the file
-    says, else the size of the depth map it is used with)."""
-    from cuboidcli.io.depth import parse_intrinsics
-
-    if intrinsics is None and preset is None:
-        raise ValueError("give the intrinsics ('fx,fy,cx,cy' or a JSON file) or a preset (nyu, tum, scannet)")
-    if preset is not None and intrinsics is None:
-        cam = Camera.preset(preset)
-        return cam if not (width or height) else cam.with_size(width, height)
-    intr = parse_intrinsics(None if intrinsics is None else str(intrinsics), preset, frame=frame)
-    return Camera(
-        intr.fx, intr.fy, intr.cx, intr.cy, int(width or intr.width or 0), int(height or intr.height or 0)
-    )
-
-
 def estimate_depth(
     rgb: np.ndarray, camera: Camera, *, model: str | os.PathLike | None = None, device: str = "auto"
 ) -> np.ndarray:
@@ -436,13 +376,12 @@ def estimate_depth(
     network is loaded once per process."""
     from cuboidcli.depth import estimate_depth as _estimate
     from cuboidcli.factories import DepthModelOptions, depth_estimator
-    from cuboidcli.weights import shipped_path
+    from cuboidcli.weights import depth_model_path
 
     rgb = np.asarray(rgb)
     if rgb.ndim != 3 or rgb.shape[2] != 3:
         raise ValueError(f"rgb must be an (H, W, 3) image, got shape {rgb.shape}")
     h, w = rgb.shape[:2]
-    path = None if model is None else str(shipped_path(model))
-    estimator = depth_estimator(DepthModelOptions(path, device=resolve_device(device)))
-    depth, _ = _estimate(estimator, rgb, _sized(camera, w, h))
+    estimator = depth_estimator(DepthModelOptions(depth_model_path(model), device=resolve_device(device)))
+    depth, _ = _estimate(estimator, rgb, camera.for_image(w, h))
     return depth

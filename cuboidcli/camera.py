@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -23,7 +23,15 @@ class Camera:
     """Pinhole intrinsics in pixels for an image of ``width`` x ``height`` pixels.
 
     ``width``/``height`` 0 (the default) mean "the size of the image it is used with": the Python API
-    (:func:`cuboidcli.fit`) takes them from the depth map.
+    (:func:`cuboidcli.fit`) takes them from the depth map, and intrinsics a user gives without a size
+    (``-K fx,fy,cx,cy``) have none.
+
+    ``depth_scale`` and ``source`` say what the intrinsics came with: the depth unit the same source states
+    (a preset, a camera file; None: it states none) and where they came from (``"preset:nyu"``, a file, an
+    EXIF tag, a default field of view), for the frame's record and its messages. They travel with the
+    camera from the readers (:mod:`cuboidcli.io.depth`, :mod:`cuboidcli.io.photo`) to the frame instead
+    of in a second intrinsics type, and are no part of the pinhole: not compared, not shown, not written
+    (:meth:`to_dict` is the six numbers).
     """
 
     fx: float
@@ -32,13 +40,20 @@ class Camera:
     cy: float
     width: int = 0
     height: int = 0
+    depth_scale: float | None = field(default=None, compare=False, repr=False)
+    """Metres per depth-PNG unit, as the intrinsics' source states it; None: it states none."""
+    source: str = field(default="", compare=False, repr=False)
+    """Where the intrinsics came from, in words (``meta["intrinsics_source"]`` of a fit)."""
 
     @classmethod
     def preset(cls, name: str) -> Camera:
         if name not in PRESETS:
             raise ValueError(f"unknown camera preset {name!r}; choose one of {', '.join(PRESETS)}")
         p = PRESETS[name]
-        return cls(p["fx"], p["fy"], p["cx"], p["cy"], int(p["width"]), int(p["height"]))
+        return cls(
+            p["fx"], p["fy"], p["cx"], p["cy"], int(p["width"]), int(p["height"]), p["depth_scale"],
+            f"preset:{name}",
+        )  # fmt: skip
 
     @classmethod
     def from_dict(cls, d: dict) -> Camera:
@@ -47,7 +62,25 @@ class Camera:
         )
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        """The pinhole: fx, fy, cx, cy, width, height (the "camera" of a result file)."""
+        return {k: getattr(self, k) for k in ("fx", "fy", "cx", "cy", "width", "height")}
+
+    @property
+    def sized(self) -> bool:
+        """Whether the size is known (both width and height given)."""
+        return bool(self.width and self.height)
+
+    def for_image(self, width: int, height: int) -> Camera:
+        """This camera for a ``width`` x ``height`` image: without a size it takes the image's; with another
+        size it is a one-line ValueError."""
+        if self.width == 0 and self.height == 0:
+            return self.with_size(width, height)
+        if (self.width, self.height) != (width, height):
+            raise ValueError(
+                f"the depth map is {width}x{height} but the camera is {self.width}x{self.height}; "
+                "give the camera of this image (or leave width and height out)"
+            )
+        return self
 
     @property
     def K(self) -> np.ndarray:  # noqa: N802 - the usual symbol
@@ -56,6 +89,11 @@ class Camera:
 
     def with_size(self, width: int, height: int) -> Camera:
         return replace(self, width=int(width), height=int(height))
+
+    def camera(self, width: int, height: int) -> Camera:
+        """:meth:`with_size`, as the intrinsics of :func:`cuboidcli.io.depth.Intrinsics` spelled it; kept
+        while :mod:`cuboidcli.frame` calls it."""
+        return self.with_size(width, height)
 
     def scaled(self, sx: float, sy: float | None = None) -> Camera:
         """Intrinsics of the image resized by factors (sx, sy), pixel-centre convention."""

@@ -5,8 +5,10 @@ The parts themselves live below (:mod:`cuboidcli.solvers`, :mod:`cuboidcli.sampl
 (:func:`cuboidcli.fitting.pipeline.fit_depth`) takes a built solver and sampler. Turning a setting and a
 ``--weights`` value into those is done here, with the weights registry (:mod:`cuboidcli.weights`):
 
-- :func:`make_solver`: numerical, neural or ONNX, from a :class:`~cuboidcli.fitting.config.FitConfig`;
-- :func:`make_sampler`: uniform, sequential, local or learned; :func:`load_learned_sampler` the latter;
+- :func:`make_solver` and :func:`make_sampler`: the part a name of the registry
+  (:data:`cuboidcli.fitting.parts.PARTS`) stands for, built by its builder (the functions ``*_solver`` and
+  ``*_sampler`` below) with the weights file of its network; :func:`load_learned_sampler` the learned
+  sampler from a weights value;
 - :func:`make_depth_estimator`: the built-in depth network, a user's ONNX model or a Hugging Face model;
   :func:`depth_estimator` the same for :class:`DepthModelOptions`, built once per process;
   :func:`depth_for_fit` depth from an RGB image in one call.
@@ -25,7 +27,9 @@ from pathlib import Path
 import numpy as np
 
 from cuboidcli.camera import Camera
+from cuboidcli.fitting import parts
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.parts import BuildInputs
 from cuboidcli.sampling import LocalSampler, Sampler, SequentialSampler, UniformSampler
 from cuboidcli.solvers.base import CuboidSolver, SizeBounds
 from cuboidcli.weights import resolve, weights_for
@@ -40,47 +44,76 @@ def make_solver(
     """The solver ``config.solver`` names, bounded by ``config.a_min`` and ``config.a_max``. ``weights_dir``:
     a ``--weights`` value for the neural solver (None: the shipped weights); ``onnx_path``: the exported
     solver for ``onnx``. Raises ValueError for an unknown name, FileNotFoundError for missing weights."""
-    bounds = SizeBounds(config.a_min, config.a_max)
-    if config.solver == "numerical":
-        from cuboidcli.solvers.numerical import NumericalSolver
-
-        return NumericalSolver(
-            bounds=bounds, lr=config.solver_lr, iters=config.solver_iters, backend=config.backend
-        )
-    if config.solver == "neural":
-        from cuboidcli.solvers.neural import NeuralSolver
-
-        weights = resolve("solver", weights_for("solver", weights_dir))
-        return NeuralSolver(weights=weights, device=device, bounds=bounds)
-    if config.solver == "onnx":
-        from cuboidcli.solvers.onnx import OnnxSolver
-
-        if onnx_path is None:
-            raise ValueError("the onnx solver needs an ONNX file (--onnx solver.onnx)")
-        return OnnxSolver(str(onnx_path), bounds)
-    raise ValueError(f"unknown solver {config.solver!r}; choose numerical, neural or onnx")
+    return _build(parts.find("solver", config.solver), config, weights_dir, onnx_path, device)
 
 
-def make_sampler(name: str, weights_dir: str | os.PathLike | None = None, device: str = "cpu") -> Sampler:
-    """The sampler ``name`` names; ``weights_dir``: a ``--weights`` value for the learned one."""
-    if name == "uniform":
-        return UniformSampler()
-    if name == "sequential":
-        return SequentialSampler()
-    if name == "local":
-        return LocalSampler()
-    if name == "learned":
-        return load_learned_sampler(weights_for("sampler", weights_dir), device)
-    raise ValueError(f"unknown sampler {name!r}; choose uniform, sequential, local or learned")
+def make_sampler(
+    name: str,
+    weights_dir: str | os.PathLike | None = None,
+    device: str = "cpu",
+    config: FitConfig | None = None,
+) -> Sampler:
+    """The sampler ``name`` names; ``weights_dir``: a ``--weights`` value for the learned one. ``config``:
+    the fit's settings, for a sampler that reads them (default: FitConfig's defaults)."""
+    return _build(parts.find("sampler", name), config or FitConfig(), weights_dir, None, device)
+
+
+def _build(part: parts.Part, config: FitConfig, weights_dir, onnx_path, device: str):
+    """The part built with the file of its network that a ``--weights`` value names
+    (:func:`cuboidcli.weights.weights_for`, then :func:`~cuboidcli.weights.resolve`)."""
+    weights = None if part.network is None else resolve(part.network, weights_for(part.network, weights_dir))
+    onnx = None if onnx_path is None else Path(onnx_path)
+    return part.build(BuildInputs(config, weights, onnx, device))
+
+
+def _bounds(config: FitConfig) -> SizeBounds:
+    return SizeBounds(config.a_min, config.a_max)
+
+
+def numerical_solver(inputs: BuildInputs) -> CuboidSolver:
+    from cuboidcli.solvers.numerical import NumericalSolver
+
+    c = inputs.config
+    return NumericalSolver(bounds=_bounds(c), lr=c.solver_lr, iters=c.solver_iters, backend=c.backend)
+
+
+def neural_solver(inputs: BuildInputs) -> CuboidSolver:
+    from cuboidcli.solvers.neural import NeuralSolver
+
+    return NeuralSolver(weights=inputs.weights, device=inputs.device, bounds=_bounds(inputs.config))
+
+
+def onnx_solver(inputs: BuildInputs) -> CuboidSolver:
+    from cuboidcli.solvers.onnx import OnnxSolver
+
+    if inputs.onnx is None:
+        raise ValueError("the onnx solver needs an ONNX file (--onnx solver.onnx)")
+    return OnnxSolver(str(inputs.onnx), _bounds(inputs.config))
+
+
+def sequential_sampler(inputs: BuildInputs) -> Sampler:
+    return SequentialSampler()
+
+
+def learned_sampler(inputs: BuildInputs) -> Sampler:
+    from cuboidcli.sampling.learned import LearnedSampler
+
+    return LearnedSampler.load(inputs.weights, device=inputs.device)
+
+
+def local_sampler(inputs: BuildInputs) -> Sampler:
+    return LocalSampler()
+
+
+def uniform_sampler(inputs: BuildInputs) -> Sampler:
+    return UniformSampler()
 
 
 def load_learned_sampler(weights: str | os.PathLike | None = None, device: str = "cpu"):
     """The learned sampler with the weights a ``--weights`` value names (:func:`cuboidcli.weights.resolve`:
     a .pt file as given, ``<folder>/sampler_v2.pt``, None: ``models/sampler_v2.pt`` or
     ``$CUBOIDS_SAMPLER_WEIGHTS``). Raises FileNotFoundError when that file is missing."""
-    from cuboidcli.sampling.learned import LearnedSampler
-
-    return LearnedSampler.load(resolve("sampler", weights), device=device)
+    return learned_sampler(BuildInputs(FitConfig(), resolve("sampler", weights), device=device))
 
 
 def make_depth_estimator(

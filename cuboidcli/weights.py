@@ -1,7 +1,10 @@
 """The weights registry: which file each network loads. Everything that picks weights asks here.
 
-- **Names**: the versioned file names of the networks in a weights folder (:data:`FILES`), the layout the
-  trainers write and ``--weights DIR`` reads.
+- **The table**: :data:`NETWORKS`, one record per kind of network: its shipped default, the environment
+  variable that replaces it, the names it has in a weights folder and who loads it. :data:`KINDS`,
+  :data:`FILES`, :data:`SOLVER_FILES`, :data:`DEFAULTS`, :data:`ENV` and :data:`DEFAULT_FILES` are views
+  of it. Which sampler or solver loads which kind is the parts registry's
+  (:data:`cuboidcli.fitting.parts.PARTS`).
 - **Shipped weights**: :data:`MODELS_DIR`, the repository's ``models/`` (``cuboidcli/models`` in an
   installed wheel, see setup.py), ``$CUBOIDS_MODELS`` overriding it; :func:`shipped_path` finds a path the
   documentation writes (``models/solver_v1.pt``) there.
@@ -26,23 +29,74 @@ from __future__ import annotations
 
 import hashlib
 import os
+from dataclasses import dataclass
 from functools import lru_cache
 from pathlib import Path
 
-#: The kinds of network, as :func:`cuboidcli.io.checkpoints.checkpoint_kind` tells them apart.
-KINDS = ("sampler", "solver", "depth")
+from cuboidcli.fitting import parts
 
-#: Versioned file name of each network in a weights folder (what the trainers write; a fine-tuned bundle
-#: holds ``depth_v2.pt``).
-FILES = {"sampler": "sampler_v2.pt", "solver": "solver_v2.pt", "depth": "depth_v2.pt"}
+
+@dataclass(frozen=True)
+class Network:
+    """One kind of network and its files."""
+
+    kind: str
+    """``sampler``, ``solver`` or ``depth``, as :func:`cuboidcli.io.checkpoints.checkpoint_kind` tells them
+    apart."""
+    default: str
+    """The shipped default weights, relative to :data:`MODELS_DIR`."""
+    env: str
+    """The environment variable that replaces :attr:`default`."""
+    folder_files: tuple[str, ...]
+    """Its names in a weights folder, the first found is loaded; the first is the one the trainers write
+    (a fine-tuned bundle holds ``depth_v2.pt``, while the shipped default depth network is a later one)."""
+    bundle: str | None = None
+    """The folder of MODELS_DIR its users load every network of the fit from when no ``--weights`` is
+    given (the set it was fine-tuned with); None: the top-level defaults."""
+    used_by: str | None = None
+    """Who loads it, as ``cuboids --version`` says; None: the parts that load it (``--solver neural``)."""
+
+    def users(self) -> str:
+        return self.used_by or " / ".join(p.flag for p in parts.loading(self.kind))
+
+
+#: Every kind of network, the sampler's and the solver's first (the networks a fit loads).
+NETWORKS: tuple[Network, ...] = (
+    Network("sampler", "sampler_v2.pt", "CUBOIDS_SAMPLER_WEIGHTS", ("sampler_v2.pt",)),
+    Network("solver", "solver_v2.pt", "CUBOIDS_SOLVER_WEIGHTS", ("solver_v2.pt", "solver_v1.pt"), "neural"),
+    Network("depth", "depth_v4.pt", "CUBOIDS_DEPTH_WEIGHTS", ("depth_v2.pt",),
+            used_by="RGB input (depth network)"),
+)  # fmt: skip
+NETWORK = {n.kind: n for n in NETWORKS}
+
+#: The kinds of network, as :func:`cuboidcli.io.checkpoints.checkpoint_kind` tells them apart.
+KINDS = tuple(NETWORK)
+#: File name of each network in a weights folder (what the trainers write).
+FILES = {n.kind: n.folder_files[0] for n in NETWORKS}
 #: Solver files looked for in a folder, first found: ``solver_v1.pt`` in folders of the first release.
-SOLVER_FILES = ("solver_v2.pt", "solver_v1.pt")
+SOLVER_FILES = NETWORK["solver"].folder_files
 #: The environment variable that replaces each network's default weights file.
-ENV = {
-    "sampler": "CUBOIDS_SAMPLER_WEIGHTS",
-    "solver": "CUBOIDS_SOLVER_WEIGHTS",
-    "depth": "CUBOIDS_DEPTH_WEIGHTS",
-}
+ENV = {n.kind: n.env for n in NETWORKS}
+#: Each network's default weights file, relative to MODELS_DIR.
+DEFAULTS = {n.kind: n.default for n in NETWORKS}
+#: The kinds of network a fit loads (those its samplers and solvers load), in NETWORKS order.
+FIT_KINDS = tuple(k for k in KINDS if parts.loading(k))
+#: The bundle fine-tuned from RGB with the built-in depth network; opt-in while it holds no sampler.
+RGB_BUNDLE = "rgb"
+
+
+def _default_files() -> tuple[tuple[str, str], ...]:
+    """(who loads it, path relative to MODELS_DIR) of every file a run loads when no weights are given:
+    each network's default, or, where its users load a bundle, the bundle's file of every network a fit
+    loads (the others labelled with their kind)."""
+    rows = []
+    for net in NETWORKS:
+        if net.bundle is None:
+            rows.append((net.users(), net.default))
+            continue
+        rows.append((net.users(), f"{net.bundle}/{FILES[net.kind]}"))
+        rows += [(f"{net.users()} ({k})", f"{net.bundle}/{FILES[k]}") for k in FIT_KINDS if k != net.kind]
+    return tuple(rows)
 
 
 def _shipped_models_dir() -> Path:
@@ -57,16 +111,8 @@ def _shipped_models_dir() -> Path:
 #: The shipped weights; ``$CUBOIDS_MODELS`` overrides them.
 MODELS_DIR = Path(os.environ.get("CUBOIDS_MODELS") or _shipped_models_dir())
 
-#: Each network's default weights file, relative to MODELS_DIR.
-DEFAULTS = {"sampler": "sampler_v2.pt", "solver": "solver_v2.pt", "depth": "depth_v4.pt"}
-
 #: The files loaded when no weights are given: (what uses it, path relative to MODELS_DIR).
-DEFAULT_FILES = (
-    ("--sampler learned", "sampler_v2.pt"),
-    ("--solver neural", "neural/solver_v2.pt"),
-    ("--solver neural (sampler)", "neural/sampler_v2.pt"),
-    ("RGB input (depth network)", "depth_v4.pt"),
-)
+DEFAULT_FILES = _default_files()
 
 
 def short_hash(path: Path, digits: int = 12) -> str:
@@ -93,11 +139,19 @@ def shipped_path(value: str | os.PathLike) -> Path:
     weights when it does not exist relative to the working directory (an installed package has no
     ``models/`` folder there). Any other path is returned as given."""
     path = Path(value)
-    parts = path.parts
-    if path.exists() or path.is_absolute() or len(parts) < 2 or parts[0] != "models":
+    names = path.parts
+    if path.exists() or path.is_absolute() or len(names) < 2 or names[0] != "models":
         return path
-    shipped = MODELS_DIR.joinpath(*parts[1:])
+    shipped = MODELS_DIR.joinpath(*names[1:])
     return shipped if shipped.exists() else path
+
+
+def depth_model_path(model: str | os.PathLike | None) -> str | None:
+    """A ``--depth-model`` value as the depth factories take it: None (the built-in network) and a Hugging
+    Face id (``hf:owner/name``) as written, a file or folder found with :func:`shipped_path`."""
+    if model is None or str(model).startswith("hf:"):
+        return None if model is None else str(model)
+    return str(shipped_path(model))
 
 
 def default_weights_dir(solver: str, rgb: bool = False, builtin_depth: bool = True) -> Path | None:
@@ -106,10 +160,11 @@ def default_weights_dir(solver: str, rgb: bool = False, builtin_depth: bool = Tr
     ``rgb``: the depth comes from the image; ``builtin_depth``: through the built-in network (a user's depth
     model gets the depth-input sampler, which was not tuned for any particular network).
     """
-    if rgb and builtin_depth and (MODELS_DIR / "rgb" / "sampler_v2.pt").is_file():
-        return MODELS_DIR / "rgb"
-    if solver == "neural" and (MODELS_DIR / "neural" / "solver_v2.pt").is_file():
-        return MODELS_DIR / "neural"
+    if rgb and builtin_depth and (MODELS_DIR / RGB_BUNDLE / FILES["sampler"]).is_file():
+        return MODELS_DIR / RGB_BUNDLE
+    net = NETWORK.get(parts.network_of("solver", solver))
+    if net is not None and net.bundle is not None and (MODELS_DIR / net.bundle / FILES[net.kind]).is_file():
+        return MODELS_DIR / net.bundle
     return None
 
 
@@ -180,8 +235,8 @@ def weights_for(kind: str, weights: str | os.PathLike | None) -> str | os.PathLi
 
 def networks_loaded(solver: str, sampler: str) -> list[str]:
     """The kinds of network a configuration loads from ``--weights``."""
-    used = {"solver": solver == "neural", "sampler": sampler == "learned"}
-    return [kind for kind, loaded in used.items() if loaded]
+    kinds = (parts.network_of("solver", solver), parts.network_of("sampler", sampler))
+    return [kind for kind in dict.fromkeys(kinds) if kind is not None]
 
 
 def files_loaded(solver: str, sampler: str, weights: str | os.PathLike | None = None) -> dict[str, Path]:
@@ -192,8 +247,8 @@ def files_loaded(solver: str, sampler: str, weights: str | os.PathLike | None = 
 
 def check_weights_option(weights: str | os.PathLike | None, solver: str, sampler: str) -> None:
     """Refuse a ``--weights`` value that no part of the run would load (it would be silently ignored):
-    any value when neither the neural solver nor the learned sampler runs, or a file of ours that holds
-    another network (a depth network, or the sampler with only ``--solver neural``). Raises
+    any value when no part that loads a network runs (the neural solver, the learned sampler), or a file of
+    ours that holds another network (a depth network, or the sampler with only ``--solver neural``). Raises
     :class:`~cuboidcli.io.checkpoints.CheckpointError`."""
     from cuboidcli.io.checkpoints import CheckpointError
 
@@ -201,14 +256,13 @@ def check_weights_option(weights: str | os.PathLike | None, solver: str, sampler
         return
     kinds = networks_loaded(solver, sampler)
     if not kinds:
+        loaders = (p.flag for kind in ("solver", "sampler") for p in parts.loading(kind))
         raise CheckpointError(
-            f"--weights {weights}: this run loads no network; --weights applies to --solver neural and "
-            "--sampler learned"
+            f"--weights {weights}: this run loads no network; --weights applies to {' and '.join(loaders)}"
         )
     if Path(weights).is_file() and (found := checkpoint_kind(weights)) not in (*kinds, None):
-        flags = {"solver": "--solver neural", "sampler": "--sampler learned"}
         raise CheckpointError(
             f"--weights {weights} holds the {found} network, but this run loads the "
-            f"{' and '.join(kinds)} network ({', '.join(flags[k] for k in kinds)}); pass that file or a "
-            "folder that holds it"
+            f"{' and '.join(kinds)} network ({', '.join(NETWORK[k].users() for k in kinds)}); pass that "
+            "file or a folder that holds it"
         )

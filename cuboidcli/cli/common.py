@@ -167,12 +167,11 @@ def run_as_module(command, argv: list[str] | None, prog: str) -> None:
 
 
 def resolve_device(device: str) -> str:
-    import torch
+    """A ``--device`` value resolved (:func:`cuboidcli.fitting.config.resolve_device`); one line and exit
+    status 2 when it cannot be used."""
+    from cuboidcli.fitting.config import resolve_device as resolve
 
-    if device == "auto":
-        return "cuda" if torch.cuda.is_available() else "cpu"
-    if device == "cuda" and not torch.cuda.is_available():
-        fail("--device cuda: no CUDA device is available; use --device cpu or auto")
-    if device not in ("cpu", "cuda"):
-        fail(f"--device {device!r}: choose auto, cpu or cuda")
-    return device
+    try:
+        return resolve(device, "--device")
+    except ValueError as e:
+        fail(str(e))

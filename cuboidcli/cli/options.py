@@ -3,8 +3,9 @@
 Such an option is the parameter of its command named after the field (``slab_max_m``; :func:`flags` gives
 its flags, ``--slab-max``); its default is the field's and its help text the first paragraph of the field's
 docstring in fitting/config.py (:func:`field_help`). :func:`fit_config` turns a command's options into a
-FitConfig, with the command line's checks and messages. ``--fast`` and ``--device``, which are no plain
-fields, are defined here once for every command. ``tests/cli/test_options.py`` holds the commands to this.
+FitConfig, checked by FitConfig's own checks with the flags named in their messages. ``--fast`` and
+``--device``, which are no plain fields, are defined here once for every command.
+``tests/cli/test_options.py`` holds the commands to this.
 
 The ``cuboids train`` commands' options are made the same way from the training configs:
 :mod:`cuboidcli.cli.train_options`.
@@ -22,9 +23,10 @@ from functools import cache
 import typer
 from rich.markup import escape
 
-from cuboidcli.api import SAMPLERS, SOLVERS, Fitter
+from cuboidcli.api import Fitter
 from cuboidcli.cli.common import fail, resolve_device
-from cuboidcli.fitting.config import ALIGN_MODES, FitConfig
+from cuboidcli.fitting.config import FitConfig, setting_error
+from cuboidcli.fitting.parts import SAMPLERS, SOLVERS
 
 FIELDS = tuple(f.name for f in dataclasses.fields(FitConfig))
 DEFAULTS = FitConfig()
@@ -131,34 +133,27 @@ def device_option():
 
 def fit_config(options: dict, base: FitConfig | None = None, samplers=SAMPLERS, solvers=SOLVERS) -> FitConfig:
     """The FitConfig of a command's options (its parameters by name): ``base`` (default: FitConfig's
-    defaults) with each option named after a field that is given (not None) set, checked as the command
-    line checks them (one-line errors naming the flag, exit status 2). ``--gravity`` text is parsed,
-    ``fast`` sets prescore_points, ``device`` (auto) is resolved; other options are ignored."""
+    defaults) with each option named after a field that is given (not None) set, each checked by
+    FitConfig's check of that field (:func:`~cuboidcli.fitting.config.setting_error`: one-line errors
+    naming the flag, exit status 2). ``samplers`` and ``solvers``: the parts the command offers (default:
+    every registered one). ``--gravity`` text is parsed, ``fast`` sets prescore_points, ``device`` (auto) is
+    resolved; other options are ignored."""
     settings = {name: options[name] for name in FIELDS if options.get(name) is not None}
+    offered = {"sampler": tuple(samplers), "solver": tuple(solvers)}
     for name, value in settings.items():
-        _check(name, value, samplers, solvers)
+        error = setting_error(name, value, flags(name).split("/")[0], offered.get(name))
+        if error is not None:
+            fail(error)
     if "gravity_down" in settings:
         settings["gravity_down"] = parse_gravity(settings["gravity_down"])
     if "device" in settings:
         settings["device"] = resolve_device(settings["device"])
     if options.get("fast"):
         settings["prescore_points"] = FAST_PRESCORE_POINTS
-    return dataclasses.replace(base or DEFAULTS, **settings)
-
-
-def _check(name: str, value, samplers, solvers) -> None:
-    flag = flags(name).split("/")[0]
-    if name in ("hypotheses", "max_cuboids", "grid_step", "max_batches") and value < 1:
-        fail(f"{flag} must be at least 1 (got {value})")
-    if name == "local_fraction" and not 0.0 <= value <= 1.0:
-        fail(f"{flag} must be between 0 and 1 (got {value})")
-    if name == "slab_max_m" and value <= 0:
-        fail(f"{flag} must be positive metres (got {value})")
-    if name == "align" and value not in ALIGN_MODES:
-        fail(f"{flag} {value!r}: choose {', '.join(ALIGN_MODES)}")
-    for field, choices in (("sampler", samplers), ("solver", solvers)):
-        if name == field and value not in choices:
-            fail(f"{flag} {value!r}: choose {', '.join(choices[:-1])} or {choices[-1]}")
+    try:
+        return dataclasses.replace(base or DEFAULTS, **settings)
+    except ValueError as e:  # a combination the single settings' checks cannot see
+        fail(str(e))
 
 
 def parse_gravity(text: str) -> tuple[float, float, float]:

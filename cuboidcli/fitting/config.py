@@ -9,8 +9,10 @@ later paragraphs give the details.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, fields
 
+from cuboidcli.fitting.parts import SAMPLERS, SOLVERS, or_list
 from cuboidcli.geometry.backends import BACKENDS
 
 #: Orientation constraints of selected cuboids (FitConfig.align).
@@ -57,7 +59,9 @@ class FitConfig:
     sampler: str = "sequential"
     """Sampling weights of the points of minimal sets (of a localised set's first point): ``sequential``
     (1 - max(state, 0), Sequential RANSAC: points already explained are drawn less), ``learned`` (the
-    sampling-weight network, Sec. 3.2.1), ``uniform``; ``local`` = sequential with every set localised."""
+    sampling-weight network, Sec. 3.2.1), ``uniform``; ``local`` = sequential with every set localised.
+
+    The names are those of :data:`cuboidcli.fitting.parts.PARTS`, where each sampler is registered."""
     local_fraction: float = 0.75
     """Share of minimal sets drawn from a 3D ball (radii ``local_radii_m``) around their first point; 0 = the
     paper's global sets.
@@ -81,7 +85,9 @@ class FitConfig:
     hypothesis that wins it (a conservative figure; global sets count as never winning a small one)."""
     solver: str = "numerical"
     """``numerical`` (PCA + Adam), ``neural`` (the regression network), ``onnx`` (the neural solver exported
-    with ``cuboids export --onnx``)."""
+    with ``cuboids export --onnx``).
+
+    The names are those of :data:`cuboidcli.fitting.parts.PARTS`, where each solver is registered."""
     a_min: float = 1e-3
     """a_min: smallest cuboid half-size, m."""
     a_max: float = 2.0
@@ -185,26 +191,93 @@ class FitConfig:
         return asdict(self)
 
     def __post_init__(self) -> None:
-        if not 0.0 <= self.local_fraction <= 1.0:
-            raise ValueError(f"local_fraction must be in [0, 1], got {self.local_fraction}")
-        if self.max_batches < 1:
-            raise ValueError(f"max_batches must be at least 1, got {self.max_batches}")
-        if not 0.0 < self.confidence < 1.0:
-            raise ValueError(f"confidence must be in (0, 1), got {self.confidence}")
-        if self.align not in ALIGN_MODES:
-            raise ValueError(f"align must be one of {', '.join(ALIGN_MODES)}, got {self.align!r}")
-        if self.backend not in BACKENDS:
-            raise ValueError(f"backend must be one of {', '.join(BACKENDS)}, got {self.backend!r}")
+        self.check(parts=False)
+
+    def check(self, parts: bool = True) -> None:
+        """Raise a one-line ValueError for the first setting that is out of range (:data:`CHECKS`, in field
+        order), or a backend the device cannot run. ``parts``: also that ``sampler`` and ``solver`` name
+        registered parts (:mod:`cuboidcli.fitting.parts`), as the API and the command line require, which
+        build them by name; a FitConfig is made without it (``fit_depth`` takes parts built elsewhere,
+        whatever their names), so a construction or :func:`dataclasses.replace` checks the ranges only."""
+        for f in fields(self):
+            if parts or f.name not in ("sampler", "solver"):
+                error = setting_error(f.name, getattr(self, f.name))
+                if error is not None:
+                    raise ValueError(error)
         if self.backend == "numba" and not self.device.startswith("cpu"):
             raise ValueError(
                 f"backend 'numba' runs on the CPU only, not on {self.device!r}; use auto or torch"
             )
-        if self.grid_step is not None and self.grid_step < 1:
-            raise ValueError(f"grid_step must be at least 1, got {self.grid_step}")
-        if self.fit_points < 1:
-            raise ValueError(f"fit_points must be at least 1, got {self.fit_points}")
-        if not self.local_radii_m or min(self.local_radii_m) <= 0:
-            raise ValueError(f"local_radii_m must be positive radii, got {self.local_radii_m}")
+
+
+@dataclass(frozen=True)
+class Check:
+    """What one setting allows, and the one-line message when a value is not allowed. The message's
+    ``{name}`` is the field, or the flag that set it; ``{value}`` the value; ``{choices}`` the names
+    allowed as "a, b or c", ``{listed}`` as "a, b, c"."""
+
+    message: str
+    choices: tuple[str, ...] = ()
+    """The names allowed; empty: ``ok`` decides."""
+    ok: Callable[[object], bool] | None = None
+
+    def error(self, name: str, value, choices: tuple[str, ...] | None = None) -> str | None:
+        """The message for ``value``, or None when it is allowed (None, a field's "not set", always is).
+        ``choices`` narrows the names allowed (a command that offers fewer parts)."""
+        allowed = self.choices if choices is None else choices
+        if value is None or (value in allowed if allowed else self.ok(value)):
+            return None
+        listed = ", ".join(allowed)
+        return self.message.format(name=name, value=value, choices=or_list(allowed), listed=listed)
+
+
+def _at_least_1(value) -> bool:
+    return value >= 1
+
+
+_AT_LEAST_1 = Check("{name} must be at least 1 (got {value})", ok=_at_least_1)
+
+#: The check of every setting that has one, the only one of that setting (:meth:`FitConfig.check` adds the
+#: one across settings). Messages are one line; the command line prints them with the flag as the name.
+CHECKS: dict[str, Check] = {
+    "hypotheses": _AT_LEAST_1,
+    "max_cuboids": _AT_LEAST_1,
+    "min_set": _AT_LEAST_1,
+    "grid_step": _AT_LEAST_1,
+    "fit_points": _AT_LEAST_1,
+    "sampler": Check("{name} {value!r}: choose {choices}", SAMPLERS),
+    "local_fraction": Check("{name} must be between 0 and 1 (got {value})", ok=lambda v: 0.0 <= v <= 1.0),
+    "local_radii_m": Check("{name} must be positive radii (got {value})", ok=lambda v: v and min(v) > 0),
+    "max_batches": _AT_LEAST_1,
+    "confidence": Check("{name} must be in (0, 1) (got {value})", ok=lambda v: 0.0 < v < 1.0),
+    "solver": Check("{name} {value!r}: choose {choices}", SOLVERS),
+    "slab_max_m": Check("{name} must be positive metres (got {value})", ok=lambda v: v > 0),
+    "align": Check("{name} {value!r}: choose {listed}", ALIGN_MODES),
+    "upright_set_size": _AT_LEAST_1,
+    "backend": Check("{name} must be one of {listed}, got {value!r}", BACKENDS),
+}
+
+
+def setting_error(name: str, value, flag: str | None = None, choices: tuple[str, ...] | None = None):
+    """The one-line message when ``value`` is not allowed for field ``name`` (:data:`CHECKS`), naming it
+    ``flag`` when given (``--max-cuboids``); None when it is allowed. ``choices``: as :meth:`Check.error`."""
+    check = CHECKS.get(name)
+    return None if check is None else check.error(flag or name, value, choices)
+
+
+def resolve_device(device: str, name: str = "device") -> str:
+    """The torch device ``device`` means: ``auto`` is cuda if there is one, else cpu; cuda without one, or
+    any other name, is a one-line ValueError naming the setting ``name`` (``--device`` on the command
+    line). What :attr:`FitConfig.device` holds, and every command's ``--device``."""
+    import torch
+
+    if device == "auto":
+        return "cuda" if torch.cuda.is_available() else "cpu"
+    if device not in ("cpu", "cuda"):
+        raise ValueError(f"{name} {device!r}: choose auto, cpu or cuda")
+    if device == "cuda" and not torch.cuda.is_available():
+        raise ValueError(f"{name} cuda: no CUDA device is available; use {name} cpu or auto")
+    return device
 
 
 #: Outdoor settings of the paper's SMH experiments.

@@ -11,7 +11,7 @@ import math
 import os
 import warnings
 import zipfile
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -28,28 +28,26 @@ class InputWarning(UserWarning):
     """Suspicious but usable input."""
 
 
-@dataclass(frozen=True)
-class Intrinsics:
-    """Camera intrinsics as given by the user; width/height and depth_scale may be unknown (None)."""
-
-    fx: float
-    fy: float
-    cx: float
-    cy: float
-    width: int | None = None
-    height: int | None = None
-    depth_scale: float | None = None
-    source: str = ""
-
-    def camera(self, width: int, height: int) -> Camera:
-        return Camera(self.fx, self.fy, self.cx, self.cy, int(width), int(height))
+def Intrinsics(  # noqa: N802 - the name of the type it makes, for its callers
+    fx: float,
+    fy: float,
+    cx: float,
+    cy: float,
+    width: int | None = None,
+    height: int | None = None,
+    depth_scale: float | None = None,
+    source: str = "",
+) -> Camera:
+    """Intrinsics as given, as a :class:`~cuboidcli.camera.Camera` (an unknown size None is 0 there); the
+    readers here return Cameras. Kept for :mod:`cuboidcli.frame`, which still makes them by this name."""
+    return Camera(fx, fy, cx, cy, int(width or 0), int(height or 0), depth_scale, source)
 
 
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
 
-def _finite(intr: Intrinsics, what: str) -> Intrinsics:
+def _finite(intr: Camera, what: str) -> Camera:
     values = {"fx": intr.fx, "fy": intr.fy, "cx": intr.cx, "cy": intr.cy}
     bad = [k for k, v in values.items() if not math.isfinite(v)]
     if bad:
@@ -153,8 +151,9 @@ def read_rgb(path: str | os.PathLike) -> np.ndarray:
     return cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
 
 
-def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | None = None) -> Intrinsics:
-    """Intrinsics from ``fx,fy,cx,cy``, a JSON file, or a preset name.
+def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | None = None) -> Camera:
+    """The camera of ``fx,fy,cx,cy``, a JSON file, or a preset name, with its ``source`` and ``depth_scale``
+    (:class:`~cuboidcli.camera.Camera`; width and height 0 where the source gives no size).
 
     A JSON file holds keys fx, fy, cx, cy (optionally width, height, depth_scale), or a mapping from frame
     names to such entries (as ``cameras.json`` of a dataset folder); ``frame`` selects the entry.
@@ -163,17 +162,7 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
         name = preset or "nyu"
         if name not in PRESETS:
             raise InputError(f"unknown preset {name!r}; choose one of: {', '.join(PRESETS)}")
-        p = PRESETS[name]
-        return Intrinsics(
-            p["fx"],
-            p["fy"],
-            p["cx"],
-            p["cy"],
-            int(p["width"]),
-            int(p["height"]),
-            p["depth_scale"],
-            source=f"preset:{name}",
-        )
+        return Camera.preset(name)
     path = Path(spec)
     if spec.lower().endswith(".json") or path.is_file():
         d = read_json(
@@ -198,13 +187,13 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
                     f"...); none is named {frame!r}"
                 )
         try:
-            intr = Intrinsics(
+            intr = Camera(
                 float(d["fx"]),
                 float(d["fy"]),
                 float(d["cx"]),
                 float(d["cy"]),
-                int(d["width"]) if "width" in d else None,
-                int(d["height"]) if "height" in d else None,
+                int(d["width"]) if "width" in d else 0,
+                int(d["height"]) if "height" in d else 0,
                 float(d["depth_scale"]) if "depth_scale" in d else None,
                 source=str(path),
             )
@@ -222,19 +211,37 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
         fx, fy, cx, cy = (float(p) for p in parts)
     except ValueError as e:
         raise InputError(f"--intrinsics {spec!r}: fx,fy,cx,cy must be numbers") from e
-    return _finite(Intrinsics(fx, fy, cx, cy, source="command line"), f"--intrinsics {spec!r}")
+    return _finite(Camera(fx, fy, cx, cy, source="command line"), f"--intrinsics {spec!r}")
+
+
+def read_camera(
+    intrinsics: str | os.PathLike | None = None,
+    *,
+    preset: str | None = None,
+    frame: str | None = None,
+    width: int = 0,
+    height: int = 0,
+) -> Camera:
+    """Camera intrinsics as ``cuboids fit -K`` reads them: ``"fx,fy,cx,cy"`` in pixels or a JSON file (keys
+    fx, fy, cx, cy, optionally width, height; or a mapping from frame names to such entries, ``frame``
+    picks one), or ``preset`` nyu, tum or scannet. ``width``/``height`` override the file's (0: as the file
+    says, else the size of the depth map it is used with). The Python API's ``cb.read_camera``."""
+    if intrinsics is None and preset is None:
+        raise InputError("give the intrinsics ('fx,fy,cx,cy' or a JSON file) or a preset (nyu, tum, scannet)")
+    cam = parse_intrinsics(None if intrinsics is None else str(intrinsics), preset, frame=frame)
+    return cam.with_size(width or cam.width, height or cam.height)
 
 
 #: Aspect ratios within this relative difference count as the same (a preset is then scaled).
 ASPECT_TOLERANCE = 0.01
 
 
-def intrinsics_for_size(intr: Intrinsics, width: int, height: int, preset: str | None = None) -> Intrinsics:
+def intrinsics_for_size(intr: Camera, width: int, height: int, preset: str | None = None) -> Camera:
     """``intr`` for a ``width`` x ``height`` image. A preset's intrinsics (``preset`` names it) are scaled
     to the image when its aspect ratio matches (a 1280x960 image gets twice NYU's focal lengths) and refused
     with an InputError when it does not; intrinsics the user wrote (without a size, or a JSON file's) are
     used as given (:func:`check_inputs` warns when a file's size differs)."""
-    if preset is None or intr.width is None or intr.height is None:
+    if preset is None or not intr.sized:
         return intr
     if (intr.width, intr.height) == (width, height):
         return intr
@@ -244,24 +251,16 @@ def intrinsics_for_size(intr: Intrinsics, width: int, height: int, preset: str |
             f"--preset {preset} is for {intr.width}x{intr.height} images (aspect {wanted:.3f}) but this "
             f"image is {width}x{height} (aspect {aspect:.3f}); give its intrinsics with -K fx,fy,cx,cy"
         )
-    cam = Camera(intr.fx, intr.fy, intr.cx, intr.cy, intr.width, intr.height)
-    scaled = cam.scaled(width / intr.width, height / intr.height)
-    return Intrinsics(
-        scaled.fx,
-        scaled.fy,
-        scaled.cx,
-        scaled.cy,
-        width,
-        height,
-        intr.depth_scale,
+    scaled = intr.scaled(width / intr.width, height / intr.height)
+    return replace(
+        scaled, width=width, height=height, depth_scale=intr.depth_scale,
         source=f"{intr.source} scaled to {width}x{height}",
-    )
+    )  # fmt: skip
 
 
-def check_inputs(
-    depth_m: np.ndarray, intr: Intrinsics, rgb_shape: tuple[int, ...] | None = None
-) -> list[str]:
-    """Sanity checks; raises InputError for unusable input, returns warnings (one line each)."""
+def check_inputs(depth_m: np.ndarray, intr: Camera, rgb_shape: tuple[int, ...] | None = None) -> list[str]:
+    """Sanity checks of a depth map (H, W) metres, the camera it is fitted with and the size of its RGB image;
+    raises InputError for unusable input, returns warnings (one line each)."""
     h, w = depth_m.shape
     notes: list[str] = []
     valid = valid_depth(depth_m)
@@ -297,7 +296,7 @@ def check_inputs(
             f"principal point ({intr.cx:g}, {intr.cy:g}) is far outside the {w}x{h} image; "
             "check the order fx,fy,cx,cy and the image size"
         )
-    if intr.width is not None and intr.height is not None and (intr.width, intr.height) != (w, h):
+    if intr.sized and (intr.width, intr.height) != (w, h):
         notes.append(
             f"intrinsics are for {intr.width}x{intr.height} but the depth map is {w}x{h}; using them unscaled"
         )

@@ -15,7 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cuboidcli.io.depth import InputError, Intrinsics, _one_line
+from cuboidcli.camera import Camera
+from cuboidcli.io.depth import InputError, _one_line
 
 DEFAULT_FOV_DEG = 63.0
 """Field of view across the long side assumed when neither the user, the photo's EXIF nor the depth model
@@ -41,8 +42,8 @@ class Photo:
     rgb: np.ndarray
     orientation: int = 1
     """The EXIF Orientation applied to the stored pixels (1: none, or no valid tag)."""
-    exif_camera: Intrinsics | None = None
-    """Intrinsics of the upright image from EXIF (``source`` starts with "exif:"); None when unknown."""
+    exif_camera: Camera | None = None
+    """The camera of the upright image from EXIF (``source`` starts with "exif:"); None when unknown."""
     notes: list[str] = field(default_factory=list)
     """One-line warnings, e.g. a corrupt EXIF tag that was ignored."""
 
@@ -78,7 +79,7 @@ def read_photo(path: str | os.PathLike) -> Photo:
     return Photo(rgb, orientation, camera, notes)
 
 
-def default_camera(width: int, height: int, fov_deg: float = DEFAULT_FOV_DEG) -> Intrinsics:
+def default_camera(width: int, height: int, fov_deg: float = DEFAULT_FOV_DEG) -> Camera:
     """A pinhole with ``fov_deg`` across the long side, square pixels, principal point at the centre."""
     if width <= 0 or height <= 0:
         raise InputError(f"image size {width}x{height} must be positive")
@@ -91,8 +92,8 @@ def default_camera(width: int, height: int, fov_deg: float = DEFAULT_FOV_DEG) ->
 
 def exif_intrinsics(
     tags: dict, stored_w: int, stored_h: int, orientation: int = 1, notes: list[str] | None = None
-) -> Intrinsics | None:
-    """Intrinsics of the upright image from EXIF ``tags`` (tag number -> value, as Pillow reads them)
+) -> Camera | None:
+    """The camera of the upright image from EXIF ``tags`` (tag number -> value, as Pillow reads them)
     of an image stored as ``stored_w`` x ``stored_h`` pixels; None when the tags needed are missing.
 
     Corrupt or absurd tags are skipped with one line each in ``notes``, falling through to the next rule.
@@ -133,7 +134,7 @@ def exif_intrinsics(
     return _centred(fx, fy, w, h, f"exif: FocalLength {focal_mm:g} mm, FocalPlaneXResolution {xres:g}")
 
 
-def centred_intrinsics(focal_px: float, width: int, height: int, source: str) -> Intrinsics:
+def centred_intrinsics(focal_px: float, width: int, height: int, source: str) -> Camera:
     """Square pixels of ``focal_px`` with the principal point at the centre of a ``width`` x ``height``
     image (e.g. the focal length a depth model predicts); InputError for a focal length that is not a
     positive finite number."""
@@ -142,9 +143,9 @@ def centred_intrinsics(focal_px: float, width: int, height: int, source: str) ->
     return _centred(focal_px, focal_px, width, height, source)
 
 
-def _centred(fx: float, fy: float, w: int, h: int, source: str) -> Intrinsics:
+def _centred(fx: float, fy: float, w: int, h: int, source: str) -> Camera:
     """Principal point at the image centre, pixel-centre convention (as Camera.scaled)."""
-    return Intrinsics(fx, fy, (w - 1) / 2.0, (h - 1) / 2.0, int(w), int(h), source=source)
+    return Camera(fx, fy, (w - 1) / 2.0, (h - 1) / 2.0, int(w), int(h), source=source)
 
 
 def _plausible(fx: float, fy: float, w: int, h: int, what: str, notes: list[str]) -> bool:

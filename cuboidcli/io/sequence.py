@@ -18,7 +18,7 @@ import numpy as np
 
 from cuboidcli.camera import PRESETS, Camera, valid_depth
 from cuboidcli.io import depth as depth_io
-from cuboidcli.io.depth import InputError, Intrinsics, parse_intrinsics
+from cuboidcli.io.depth import InputError, parse_intrinsics
 from cuboidcli.io.scan import PointCloud, check_cloud
 
 LAYOUTS = ("tum", "scannet", "redwood", "plain")
@@ -135,7 +135,7 @@ def _nearest(times: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarr
     return best, np.abs(times[best] - query)
 
 
-def _read_tum(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Intrinsics | None]:
+def _read_tum(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Camera | None]:
     import trimesh.transformations as tf
 
     depth = _table(root / "depth.txt", 2)
@@ -190,18 +190,18 @@ def _posed_files(root: Path, notes: list[str], skip_nonfinite: bool) -> list[Seq
     return frames
 
 
-def _read_scannet(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Intrinsics | None]:
+def _read_scannet(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Camera | None]:
     frames = _posed_files(root, notes, skip_nonfinite=True)
     k = _read_matrix(root / "intrinsic" / "intrinsic_depth.txt")
-    return frames, Intrinsics(k[0, 0], k[1, 1], k[0, 2], k[1, 2], None, None, 0.001, "intrinsic_depth.txt")
+    return frames, Camera(k[0, 0], k[1, 1], k[0, 2], k[1, 2], depth_scale=0.001, source="intrinsic_depth.txt")
 
 
-def _read_plain(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Intrinsics | None]:
+def _read_plain(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Camera | None]:
     intr = parse_intrinsics(str(root / "cameras.json"))
     return _posed_files(root, notes, skip_nonfinite=False), intr
 
 
-def _read_redwood(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Intrinsics | None]:
+def _read_redwood(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Camera | None]:
     log = _log_file(root)
     try:  # blocks of a line 'i j n' and the 4x4 matrix: 19 numbers each
         blocks = np.array(log.read_text(encoding="utf-8", errors="replace").split(), dtype=np.float64)
@@ -222,10 +222,10 @@ def _read_redwood(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], In
         try:
             d = json.loads(js.read_text(encoding="utf-8"))
             k = np.array(d["intrinsic_matrix"], dtype=np.float64).reshape(3, 3).T  # stored column-major
-            size = (int(d["width"]), int(d["height"])) if "width" in d else (None, None)
+            size = (int(d["width"]), int(d["height"])) if "width" in d else (0, 0)
         except (ValueError, TypeError, KeyError, IndexError, UnicodeDecodeError):
             continue  # not an Open3D camera file
-        return frames, Intrinsics(k[0, 0], k[1, 1], k[0, 2], k[1, 2], *size, d.get("depth_scale"), str(js))
+        return frames, Camera(k[0, 0], k[1, 1], k[0, 2], k[1, 2], *size, d.get("depth_scale"), str(js))
     return frames, None
 
 
@@ -282,7 +282,7 @@ def read_sequence(
         )
     if intr.source.startswith("preset:"):
         intr = depth_io.intrinsics_for_size(intr, *size, preset=intr.source.split(":", 1)[1])
-    elif intr.width is not None and intr.height is not None and (intr.width, intr.height) != size:
+    elif intr.sized and (intr.width, intr.height) != size:
         raise InputError(
             f"the intrinsics ({intr.source}) are for {intr.width}x{intr.height} images but the depth frames "
             f"are {size[0]}x{size[1]}; give intrinsics for the depth camera with -K"
