@@ -95,7 +95,7 @@ def main() -> None:
         f"built in {time.perf_counter() - t:.2f} s"
     )
     t = time.perf_counter()
-    ensure_compiled(solver)
+    ensure_compiled(solver, sampler)
     print(
         f"start-up (kernel compile/cache load): {time.perf_counter() - t:.2f} s; torch threads "
         f"{torch.get_num_threads()}"

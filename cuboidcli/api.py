@@ -199,7 +199,7 @@ class Fitter:
         self.solver = make_solver(self.config, self.weights, self.onnx, self.config.device)
         self.sampler = make_sampler(self.config.sampler, self.weights, self.config.device, self.config)
         if self.config.device == "cpu":
-            ensure_compiled(self.solver)
+            ensure_compiled(self.solver, self.sampler)
 
     def fit(
         self,
