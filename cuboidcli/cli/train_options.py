@@ -20,7 +20,7 @@ from rich.markup import escape
 
 from cuboidcli.cli.common import fail
 from cuboidcli.cli.options import field_help
-from cuboidcli.learn.trainer import RunConfig
+from cuboidcli.learn.run_config import RunConfig
 
 
 def field_default(cls: type, name: str):

@@ -13,7 +13,7 @@ import typer
 
 from cuboidcli.cli import train_options as opt
 from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, training_run
-from cuboidcli.learn.sampler_train import SamplerTrainConfig
+from cuboidcli.learn.sampler_config import SamplerTrainConfig
 from cuboidcli.nets.sampler import SamplerNetConfig
 
 #: --prior: the sequential prior of the shipped sampler (models/sampler_v2.md); SamplerNetConfig keeps the
