@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import sys
 from pathlib import Path
 
@@ -11,7 +10,6 @@ from rich.markup import escape
 from rich.progress import TimeRemainingColumn
 from rich.table import Table
 
-from cuboidcli.api import SAMPLERS, SOLVERS
 from cuboidcli.cli import evaluate_scene as rooms
 from cuboidcli.cli.common import console, fail, out, progress_bar, user_errors
 from cuboidcli.cli.options import config_option, device_option, fast_option, fit_config, override_option
@@ -22,22 +20,10 @@ from cuboidcli.cli.scale_options import (
     skip_existing_option,
     workers_option,
 )
+from cuboidcli.evaluation.presets import EVAL_SAMPLERS, EVAL_SOLVERS
 from cuboidcli.weights import shipped_path
 
-#: The samplers and solvers an evaluation runs: no ``local`` (sequential with every set localised), no
-#: ``onnx`` (there is no --onnx file to give).
-EVAL_SAMPLERS = tuple(s for s in SAMPLERS if s != "local")
-EVAL_SOLVERS = tuple(s for s in SOLVERS if s != "onnx")
 PRESET = "the preset's"
-
-#: Table columns in the paper's order (Table 1): (aggregate key, header, decimals).
-COLUMNS = (
-    ("time_s", "time (s)", 2),
-    ("cuboids", "|M|", 1),
-    ("coverage_pct", "cover %", 1),
-    ("oa_covered_cm", "OA cov. cm", 1),
-    ("oa_all_cm", "OA all cm", 1),
-)
 
 
 def _parse_list(text: str, what: str, cast=float) -> list:
@@ -64,135 +50,14 @@ def _config(preset: str | None, auc: str | None, options: dict):
     return config, auc_cm, applied
 
 
-def _fmt(mean: float, std: float, decimals: int, runs: int) -> str:
-    if mean is None or not math.isfinite(mean):
-        return "-"
-    return f"{mean:.{decimals}f}" + (f" ± {std:.{decimals}f}" if runs > 1 else "")
-
-
-def _table(report, title: str, cols: list[tuple[str, str, int]]) -> Table:
-    runs = len(report.runs)
-    table = Table(title=title, title_justify="left")
-    for _, header, _ in cols:
-        table.add_column(header, justify="right")
-    table.add_row(*(_fmt(*report.summary.get(k, (math.nan, math.nan)), d, runs) for k, _, d in cols))
-    return table
-
-
-def results_table(report, label: str) -> Table:
-    """The paper's metrics (Table 1 column order), mean ± std over runs."""
-    from cuboidcli.evaluation.metrics import auc_key
-
-    cols = list(COLUMNS) + [(auc_key(cm), f"AUC@{cm:g} %", 1) for cm in report.settings.auc_cm]
-    n = report.runs[0]["frames"]
-    title = f"{label}: {n} frame{'' if n == 1 else 's'}"
-    if len(report.runs) > 1:
-        title += f", mean ± std of {len(report.runs)} runs (seeds {report.seeds[0]}..{report.seeds[-1]})"
-    return _table(report, title, cols)
-
-
-def gt_table(report) -> Table | None:
-    """Recall and precision of ground-truth cuboids (greedy one-to-one matching at 3D IoU), if any."""
-    keys = [k for k in report.runs[0] if k.startswith(("recall_iou", "precision_iou"))]
-    if not keys:
-        return None
-    cols = [(k, k.replace("_iou", "@").replace("_pct", " %"), 1) for k in keys]  # recall@0.25 %
-    return _table(report, f"ground-truth cuboids ({report.runs[0]['frames_with_gt']} frames), 3D IoU", cols)
-
-
-def objects_table(report) -> Table | None:
-    """Object recall and precision from the instance images (synthetic data), if any."""
-    if "object_recall_pct" not in report.runs[0]:
-        return None
-    cols = [
-        ("object_recall_pct", "object recall %", 1),
-        ("object_precision_pct", "object precision %", 1),
-        ("objects_eligible", "eligible objects", 0),
-    ]
-    n = report.runs[0]["frames_with_instances"]
-    return _table(report, f"objects of the instance images ({n} frame{'' if n == 1 else 's'})", cols)
-
-
-def shape_table(report) -> Table | None:
-    """Axis angles against gravity / the room's axes and the support of the visible faces, if measured."""
-    if "support_median_pct" not in report.runs[0]:
-        return None
-    cols = [
-        ("axis_angle_gravity_median_deg", "∠up °", 1),
-        ("axis_angle_manhattan_median_deg", "∠room °", 1),
-        ("slabs", "slabs", 0),
-        ("slabs_within_3deg_pct", "slabs ≤3° %", 1),
-        ("room_slabs_within_3deg_pct", "room ≤3° %", 1),
-        ("support_median_pct", "support %", 1),
-        ("support_mean_pct", "mean %", 1),
-    ]
-    run = report.runs[0]
-    refs = ", ".join(
-        f"{src} {run.get(f'frames_gravity_{src}', 0)}"
-        for src in ("fit", "synthetic", "estimated", "none")
-        if run.get(f"frames_gravity_{src}", 0)
-    )
-    return _table(report, f"shape: medians over cuboids; axes of: {refs}", cols)
-
-
-def gravity_table(report) -> Table | None:
-    """Error of the gravity estimate on frames with a known gravity (synthetic data), if any."""
-    if "frames_with_known_gravity" not in report.runs[0]:
-        return None
-    cols = [
-        ("gravity_error_median_deg", "median °", 2),
-        ("gravity_error_max_deg", "max °", 2),
-        ("gravity_within_2deg_pct", "≤2° %", 1),
-        ("gravity_estimates_missing", "no estimate", 0),
-    ]
-    of_fit = sum(1 for m in report.frames[0] if m.shape is not None and m.shape.gravity_error_of == "fit")
-    whose = "fit" if of_fit else "depth estimate"
-    n = report.runs[0]["frames_with_known_gravity"]
-    title = f"gravity error, {whose} ({n} frame{'' if n == 1 else 's'})"
-    return _table(report, title, cols)
-
-
-def parsimony_table(report) -> Table | None:
-    """The parsimony curve: AUC and coverage of the first k cuboids (selection order), mean ± std."""
-    from cuboidcli.evaluation.metrics import auc_key
-
-    if "parsimony" not in report.summary:
-        return None
-    mean, std = report.summary["parsimony"]
-    runs = len(report.runs)
-    keys = [(auc_key(cm), f"AUC@{cm:g} %") for cm in report.settings.auc_cm]
-    keys.append(("coverage_pct", "cover %"))
-    table = Table(title="parsimony: first k cuboids", title_justify="left")
-    table.add_column("k", justify="right")
-    for _, header in keys:
-        table.add_column(header, justify="right")
-    for i, k in enumerate(mean["k"]):
-        cells = []
-        for key, _ in keys:
-            m, sd = mean.get(key), std.get(key)
-            cells.append("-" if m is None else _fmt(m[i], sd[i], 1, runs))
-        table.add_row(str(k), *cells)
-    return table
-
-
-def _method_label(config, applied: list[str], fits: Path | None) -> str:
-    if fits is not None:
-        return f"saved fits ({fits.name})"
-    oai = "OAI" if config.occlusion_aware else "no OAI"
-    refined = ", refined" if getattr(config, "refine", False) else ""
-    aligned = f", {config.align}-aligned" if getattr(config, "align", "free") != "free" else ""
-    parts = [", ".join(applied)] if applied else []
-    return " / ".join(parts + [f"{config.sampler}, {config.solver}, {oai}{refined}{aligned}"])
-
-
-def _running(ev) -> str:
-    r = ev.running
-    auc = next((f"AUC@{k[3:].split('cm')[0]} {v:.1f}%" for k, v in r.items() if k.startswith("auc")), "")
-    oa = r.get("oa_all_cm", math.nan)
-    return (
-        f"|M| {r.get('cuboids', 0):.1f}  cov {r.get('coverage_pct', 0):.1f}%  "
-        f"OA {oa:.1f} cm  {auc}  {r.get('time_s', math.nan):.2f} s/img"
-    )
+def _rich(table) -> Table:
+    """A :class:`~cuboidcli.evaluation.tables.TextTable` as a rich table."""
+    drawn = Table(title=table.title, title_justify="left")
+    for header in table.headers:
+        drawn.add_column(header, justify="right")
+    for row in table.rows:
+        drawn.add_row(*row)
+    return drawn
 
 
 def evaluate(
@@ -271,8 +136,10 @@ def evaluate(
     if rooms.is_room_run(data, options):  # DATA holds room scans, or a room-only option was given
         return rooms.evaluate_rooms(data, options)
     from cuboidcli.evaluation.outputs import write_outputs
+    from cuboidcli.evaluation.report import run_meta
     from cuboidcli.evaluation.runner import EvalSettings, load_frames
     from cuboidcli.evaluation.runner import evaluate as run
+    from cuboidcli.evaluation.tables import method_label, report_tables, running_line
 
     if runs < 1:
         fail(f"--runs must be at least 1 (got {runs})")
@@ -324,7 +191,7 @@ def evaluate(
                 prog.update(
                     task,
                     completed=ev.run * ev.total + ev.done,
-                    running=_running(ev),
+                    running=running_line(ev.running),
                     description=f"run {ev.run + 1}/{ev.runs}" if ev.runs > 1 else "frames",
                 )
 
@@ -340,11 +207,9 @@ def evaluate(
                 report = run(frame_list, config, settings, progress=on_frame, on_failed=on_failed)
             except ValueError as e:  # the engine could not start (Ray missing, a bad address)
                 fail(str(e))
-        label = _method_label(config, applied, fits) + (" from RGB" if rgb else "")
-        out.print(results_table(report, label))
-        for make in (gt_table, objects_table, shape_table, gravity_table, parsimony_table):
-            if (table := make(report)) is not None:
-                out.print(table)
+        label = method_label(config, applied, fits) + (" from RGB" if rgb else "")
+        for table in report_tables(report, label):
+            out.print(_rich(table))
         empty = sum(r.get("frames_without_cuboids", 0) for r in report.runs)
         if empty:
             console.print(
@@ -353,20 +218,8 @@ def evaluate(
                 highlight=False,
             )
         if output is not None:
-            meta = {
-                "command": " ".join(["cuboids", *sys.argv[1:]]),
-                "dataset": dataset,
-                "presets": applied,
-                "method": label,
-                "fits_dir": None if fits is None else str(fits.resolve()),
-                "weights_dir": None if weights is None else str(weights.resolve()),
-                "input": "rgb" if rgb else "depth",
-                "depth_model": None
-                if depth_model is None
-                else (str(depth_model) if hub_model else str(depth_model.resolve())),
-                "frames_done": report.counts.done,
-                "frames_skipped": report.counts.skipped,
-            }
+            command = " ".join(["cuboids", *sys.argv[1:]])
+            meta = run_meta(report, settings, command, dataset, applied, label)
             for p in write_outputs(report, output, meta, frames=frame_list):
                 out.print(f"wrote {p}")
             if save_fits:

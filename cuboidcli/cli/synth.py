@@ -10,9 +10,12 @@ import typer
 from rich.progress import TimeElapsedColumn, TimeRemainingColumn
 
 from cuboidcli.cli.common import console, fail, progress_bar, user_errors
+from cuboidcli.cli.renamed import prefer_new, renamed_option
 
 #: Folder of room scan i under OUT_DIR (``cuboids evaluate`` finds the scans by this prefix).
 SCENE_NAME = "scene_{:04d}"
+#: The camera preset by default.
+CAMERA = "nyu"
 
 
 def _write_scan(root: str, seed: int, index: int, views: int, camera, options) -> None:
@@ -51,14 +54,14 @@ def synth(
     ),
     count: int = typer.Option(100, "--count", "-n", help="Number of frames (with --views: of rooms)."),
     seed: int = typer.Option(0, "--seed", help="Dataset seed; frame (room) i is generated from (seed, i)."),
-    preset: str = typer.Option("nyu", "--preset", help="Camera intrinsics preset: nyu, tum or scannet."),
+    camera: str = typer.Option(CAMERA, "--camera", help="Camera intrinsics preset: nyu, tum or scannet."),
     width: int | None = typer.Option(
         None,
         "--width",
-        help="Image width in pixels (intrinsics are scaled from the preset; default: the preset's).",
+        help="Image width in pixels (the --camera intrinsics are scaled to it; default: the camera's).",
     ),
     height: int | None = typer.Option(
-        None, "--height", help="Image height in pixels (default: keeps the preset's aspect ratio)."
+        None, "--height", help="Image height in pixels (default: keeps the camera's aspect ratio)."
     ),
     workers: int = typer.Option(1, "--workers", "-j", help="Processes generating frames (same output)."),
     inpaint: bool = typer.Option(
@@ -74,6 +77,7 @@ def synth(
         help="Write COUNT whole-room scans of this many views each instead of single frames: "
         "OUT_DIR/scene_0000/ etc., posed RGB-D sequences with world-frame ground truth (cuboids evaluate).",
     ),
+    preset: str | None = renamed_option("--preset", "--camera"),
 ) -> None:
     """Write COUNT synthetic indoor RGB-D frames with ground-truth cuboids into OUT_DIR.
 
@@ -87,17 +91,19 @@ def synth(
     """
     from cuboidcli.camera import PRESETS, Camera
 
+    # --camera counts as given when it is not the default: both spellings given is an error
+    camera_name = prefer_new(None if camera == CAMERA else camera, preset, "--preset", "--camera") or CAMERA
     if count < 1:
         fail(f"--count {count}: give at least 1 frame")
     if workers < 1:
         fail(f"--workers {workers}: give at least 1 process")
     if views is not None and views < 1:
         fail(f"--views {views}: give at least 1 view per room")
-    if preset not in PRESETS:
-        fail(f"--preset {preset!r}: choose one of {', '.join(PRESETS)}")
+    if camera_name not in PRESETS:
+        fail(f"--camera {camera_name!r}: choose one of {', '.join(PRESETS)}")
     if out_dir.exists() and not out_dir.is_dir():
         fail(f"{out_dir} is a file; give a folder for the dataset")
-    base = Camera.preset(preset)
+    base = Camera.preset(camera_name)
     w = width or (base.width if height is None else int(round(height * base.width / base.height)))
     h = height or int(round(w * base.height / base.width))
     if w < 16 or h < 16:

@@ -26,6 +26,9 @@ def group() -> click.Group:
     return typer.main.get_group(train_app)
 
 
+#: The output folder of ``cuboids train solver`` by default.
+OUTPUT = "runs/solver"
+
 #: The end of ``cuboids train solver``'s torchrun paragraph.
 SOLVER_PROCESSES = """\
 or torchrun ... $(which cuboids) train solver ... (the console script is a Python file);
@@ -36,16 +39,16 @@ count steps. Process 0 alone validates, prints and writes OUT, which must be sha
 
 @train_app.command("solver")
 @opt.trains(SolverTrainConfig, SolverNetConfig)
-@opt.multi_process("solver --out runs/solver", then=SOLVER_PROCESSES)
+@opt.multi_process(f"solver --output {OUTPUT}", then=SOLVER_PROCESSES)
 def solver(
     iters: int = opt.train_option(SolverTrainConfig, "iters"),
     batch: int = opt.train_option(SolverTrainConfig, "batch"),
     lr: float = opt.lr_option(SolverTrainConfig),
-    width: int = opt.train_option(SolverNetConfig, "width"),
+    width: int = opt.channels_option(SolverNetConfig),
     layers: int = opt.train_option(SolverNetConfig, "layers"),
-    heads: int = opt.train_option(SolverNetConfig, "heads", text="Attention heads; must divide --width."),
+    heads: int = opt.train_option(SolverNetConfig, "heads", text="Attention heads; must divide --channels."),
     ff: int = opt.train_option(SolverNetConfig, "ff"),
-    out_dir: Path = opt.out_option("runs/solver"),
+    out_dir: Path = opt.output_option(OUTPUT),
     resume: Path | None = opt.resume_option(
         "or a step_*.pt snapshot, exactly; schedule, data and net shape are taken from it."
     ),
@@ -55,11 +58,15 @@ def solver(
     max_minutes: float | None = opt.max_minutes_option(SolverTrainConfig),
     val_every: int = opt.train_option(SolverTrainConfig, "val_every"),
     backend: str | None = opt.backend_option(),
+    old_width: int | None = opt.old_channels_option(),
+    old_out: Path | None = opt.old_output_option(),
 ) -> None:
     """Pre-train the neural cuboid solver on synthetic boxes; best weights go to OUT/best.pt.
 
     The same weights are in OUT/solver_v2.pt, the name 'cuboids fit --solver neural --weights OUT' reads.
     """
+    out_dir = opt.output_folder(out_dir, old_out, OUTPUT)
+    width = opt.channels(width, old_width, SolverNetConfig)
     options = dict(locals())
     from cuboidcli.learn.distributed import launched_rank
     from cuboidcli.learn.solver_train import train_solver
@@ -67,7 +74,7 @@ def solver(
     for name, value in (
         ("--iters", iters),
         ("--batch", batch),
-        ("--width", width),
+        ("--channels", width),
         ("--layers", layers),
         ("--heads", heads),
         ("--ff", ff),
@@ -77,7 +84,7 @@ def solver(
         if value < 1:
             fail(f"{name} must be at least 1 (got {value})")
     if width % heads:
-        fail(f"--width {width} is not divisible by --heads {heads}; pick e.g. --heads 4")
+        fail(f"--channels {width} is not divisible by --heads {heads}; pick e.g. --heads 4")
     if lr <= 0:
         fail(f"--lr must be positive (got {lr})")
     if resume is not None and not resume.is_file():

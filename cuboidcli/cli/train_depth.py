@@ -17,6 +17,8 @@ from cuboidcli.cli.common import check_training_paths, console, fail, resolve_de
 from cuboidcli.learn.depth_train import DepthTrainConfig
 
 _DEFAULTS_NOTE = "With --resume: the checkpoint's."
+#: The output folder by default.
+OUTPUT = "runs/depth"
 
 
 def _say(text: str, style: str | None = None) -> None:
@@ -108,7 +110,7 @@ def train_depth_cmd(
     grad_weight: float = opt.train_option(DepthTrainConfig, "grad_weight", more=_DEFAULTS_NOTE),
     init: str | None = opt.train_option(DepthTrainConfig, "init", more="Ignored with --resume."),
     log_every: int = opt.train_option(DepthTrainConfig, "log_every"),
-    out: Path = opt.out_option("runs/depth"),
+    out: Path = opt.output_option(OUTPUT),
     resume: Path | None = opt.resume_option("net, schedule and augmentation come from it."),
     seed: int = opt.seed_option(DepthTrainConfig, more=_DEFAULTS_NOTE),
     threads: int = opt.threads_option(DepthTrainConfig),
@@ -119,12 +121,14 @@ def train_depth_cmd(
     json_lines: bool = typer.Option(
         False, "--json", help="Print the training records as JSON lines on stdout instead of progress lines."
     ),
+    old_out: Path | None = opt.old_output_option(),
 ) -> None:
     """Train the built-in depth network on DATA; the best weights (lowest val AbsRel) go to OUT/best.pt.
 
     Images are resized to the net's 320x240 input; OUT also gets config.json, log.jsonl and last.pt.
     Use the weights with: cuboids fit IMAGE --depth-model OUT/best.pt ...
     """
+    out = opt.output_folder(out, old_out, OUTPUT)
     options = dict(locals())
     from cuboidcli.learn.depth_train import RESUME_OVERRIDES, train_depth
 
@@ -133,8 +137,8 @@ def train_depth_cmd(
         fail(f"--init {init}: no such weights file (give a depth network's .pt, e.g. models/depth_v4.pt)")
     if resume is None and (out / "last.pt").is_file():
         fail(
-            f"--out {out} already holds a training run; continue it with --resume {out / 'last.pt'} "
-            "or pick another --out"
+            f"--output {out} already holds a training run; continue it with --resume {out / 'last.pt'} "
+            "or pick another --output"
         )
     cfg = opt.config_of(DepthTrainConfig, options, device=resolve_device(device))
 

@@ -14,6 +14,9 @@ from cuboidcli.cli import train_options as opt
 from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, training_run
 from cuboidcli.learn.finetune import FinetuneConfig
 
+#: The output folder by default.
+OUTPUT = "runs/finetune"
+
 
 def _print_event(record: dict) -> None:
     kind = record.get("event")
@@ -50,7 +53,7 @@ def _print_event(record: dict) -> None:
 
 
 @opt.trains(FinetuneConfig)
-@opt.multi_process("finetune DATA --out OUT", per="group of CPU cores")
+@opt.multi_process("finetune DATA --output OUT", per="group of CPU cores")
 def train_finetune_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
     rgb: bool = opt.train_option(
@@ -87,18 +90,20 @@ def train_finetune_cmd(
     val_frames: int | None = opt.val_frames_option(FinetuneConfig),
     workers: int = opt.workers_option(FinetuneConfig),
     resume: Path | None = opt.resume_option(),
-    out: Path = opt.out_option("runs/finetune"),
+    out: Path = opt.output_option(OUTPUT),
     seed: int = opt.seed_option(FinetuneConfig),
     threads: int = opt.threads_option(FinetuneConfig),
     device: str = opt.train_device_option(FinetuneConfig),
     max_minutes: float | None = opt.max_minutes_option(FinetuneConfig),
     backend: str | None = opt.backend_option(),
+    old_out: Path | None = opt.old_output_option(),
 ) -> None:
     """Fine-tune sampler + neural solver (depth input) or depth net + sampler (+ solver) (--rgb) end to end.
 
     The best weights (validation AUC@20) go to OUT as sampler_v2.pt, solver_v2.pt and depth_v2.pt; use
     them with: cuboids fit ... --weights OUT (and --depth-model OUT/depth_v2.pt for RGB input).
     """
+    out = opt.output_folder(out, old_out, OUTPUT)
     options = dict(locals())
     from cuboidcli.learn.finetune import finetune
 

@@ -2,7 +2,7 @@
 
 An option named after a field of a training config (SamplerTrainConfig, SolverNetConfig, ...) takes the
 field's default and, as help, the first paragraph of its docstring (:func:`train_option`, as
-:mod:`cuboidcli.cli.options` does for FitConfig); the options every trainer has (``--out``, ``--seed``,
+:mod:`cuboidcli.cli.options` does for FitConfig); the options every trainer has (``--output``, ``--seed``,
 ``--device``, ...) are one function each; :func:`config_of` turns a command's options into a config.
 ``tests/cli/test_train_options.py`` holds the training commands to this. A module of its own, so that
 the modules of ``cuboids fit`` (cli/fit.py, cli/options.py) do not depend on the training package; the
@@ -20,7 +20,8 @@ from rich.markup import escape
 
 from cuboidcli.cli.common import fail
 from cuboidcli.cli.options import field_help
-from cuboidcli.learn.trainer import RunConfig
+from cuboidcli.cli.renamed import prefer_new, renamed_option
+from cuboidcli.learn.run_config import RunConfig
 
 
 def field_default(cls: type, name: str):
@@ -98,8 +99,41 @@ def multi_process(arguments: str, per: str = "GPU or per group of CPU cores", th
     return add
 
 
-def out_option(default: str):
-    return typer.Option(Path(default), "--out", "-o", help="Output folder: logs, checkpoints and weights.")
+def renamed_value(value, default, old_value, old: str, new: str):
+    """The value of an option that has a default and an old spelling (:func:`renamed_option`): ``value``,
+    or the old spelling's with a one-line warning when only that was given; both given (``value`` other
+    than ``default``) is an error, as :func:`prefer_new` makes it."""
+    chosen = prefer_new(None if value == default else value, old_value, old, new)
+    return default if chosen is None else chosen
+
+
+def output_option(default: str):
+    """The output folder (``--output``/``-o``; ``--out`` is its old spelling: :func:`old_output_option`)."""
+    return typer.Option(Path(default), "--output", "-o", help="Output folder: logs, checkpoints and weights.")
+
+
+def old_output_option():
+    return renamed_option("--out", "--output")
+
+
+def output_folder(output: Path, old: Path | None, default: str) -> Path:
+    """The output folder a command was given: ``--output``, else ``--out`` (with a warning)."""
+    return renamed_value(output, Path(default), old, "--out", "--output")
+
+
+def channels_option(cls: type, doc: type | None = None):
+    """The network's width in channels, field ``width`` of ``cls`` (``--width`` is its old spelling:
+    :func:`old_channels_option`; ``cuboids synth --width`` is an image width)."""
+    return train_option(cls, "width", "--channels", doc=doc)
+
+
+def old_channels_option():
+    return renamed_option("--width", "--channels")
+
+
+def channels(width: int, old: int | None, cls: type) -> int:
+    """The channels a command was given: ``--channels``, else ``--width`` (with a warning)."""
+    return renamed_value(width, field_default(cls, "width"), old, "--width", "--channels")
 
 
 def resume_option(more: str = ""):

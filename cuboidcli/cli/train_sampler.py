@@ -13,12 +13,14 @@ import typer
 
 from cuboidcli.cli import train_options as opt
 from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, training_run
-from cuboidcli.learn.sampler_train import SamplerTrainConfig
+from cuboidcli.learn.sampler_config import SamplerTrainConfig
 from cuboidcli.nets.sampler import SamplerNetConfig
 
 #: --prior: the sequential prior of the shipped sampler (models/sampler_v2.md); SamplerNetConfig keeps the
 #: paper's "none" for nets built without a config.
 PRIOR = "unexplained"
+#: The output folder by default.
+OUTPUT = "runs/sampler"
 
 
 def _print_event(record: dict) -> None:
@@ -62,7 +64,7 @@ def _print_event(record: dict) -> None:
 
 
 @opt.trains(SamplerTrainConfig, SamplerNetConfig)
-@opt.multi_process("sampler DATA --out OUT")
+@opt.multi_process("sampler DATA --output OUT")
 def train_sampler_cmd(
     data: Path = typer.Argument(..., help="Dataset folder (generic layout; splits.json gives train/val)."),
     epochs: int = opt.epochs_option(SamplerTrainConfig),
@@ -74,7 +76,7 @@ def train_sampler_cmd(
     alpha: float = opt.train_option(SamplerTrainConfig, "alpha", more="1000 when fine-tuning."),
     scenes_per_epoch: int | None = opt.scenes_per_epoch_option(SamplerTrainConfig),
     grid_step: int = opt.train_option(SamplerTrainConfig, "grid_step"),
-    width: int = opt.train_option(SamplerNetConfig, "width"),
+    width: int = opt.channels_option(SamplerNetConfig),
     blocks: int = opt.train_option(SamplerNetConfig, "blocks"),
     upsample: int = opt.train_option(SamplerNetConfig, "upsample"),
     prior: str = typer.Option(
@@ -93,17 +95,21 @@ def train_sampler_cmd(
     val_frames: int | None = opt.val_frames_option(SamplerTrainConfig),
     workers: int = opt.workers_option(SamplerTrainConfig),
     resume: Path | None = opt.resume_option("or an epoch_*.pt snapshot."),
-    out: Path = opt.out_option("runs/sampler"),
+    out: Path = opt.output_option(OUTPUT),
     seed: int = opt.seed_option(SamplerTrainConfig),
     threads: int = opt.threads_option(SamplerTrainConfig),
     device: str = opt.train_device_option(SamplerTrainConfig),
     max_minutes: float | None = opt.max_minutes_option(SamplerTrainConfig),
     backend: str | None = opt.backend_option(),
+    old_width: int | None = opt.old_channels_option(),
+    old_out: Path | None = opt.old_output_option(),
 ) -> None:
     """Train the sampling-weight network on DATA; the best weights go to OUT/sampler_v2.pt.
 
     Use them with: cuboids fit ... --sampler learned --weights OUT
     """
+    out = opt.output_folder(out, old_out, OUTPUT)
+    width = opt.channels(width, old_width, SamplerNetConfig)
     options = dict(locals())
     from cuboidcli.learn.sampler_train import train_sampler
 

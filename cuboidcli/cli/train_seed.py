@@ -15,6 +15,9 @@ from cuboidcli.cli.common import check_training_paths, console, training_run
 from cuboidcli.learn.seed_train import SeedTrainConfig
 from cuboidcli.nets.sampler import SamplerNetConfig
 
+#: The output folder by default.
+OUTPUT = "runs/seed"
+
 
 def _print_event(record: dict) -> None:
     kind = record.get("event")
@@ -54,15 +57,17 @@ def train_seed_cmd(
     kappa: float = opt.train_option(SeedTrainConfig, "kappa"),
     epochs: int = opt.epochs_option(SeedTrainConfig),
     lr: float = opt.lr_option(SeedTrainConfig),
-    width: int = opt.train_option(SeedTrainConfig, "width", doc=SamplerNetConfig),
+    width: int = opt.channels_option(SeedTrainConfig, doc=SamplerNetConfig),
     blocks: int = opt.train_option(SeedTrainConfig, "blocks", doc=SamplerNetConfig),
     upsample: int = opt.train_option(
         SeedTrainConfig, "upsample", text="The net runs on the fitting grid upsampled by this power of two."
     ),
     resume: Path | None = opt.resume_option(),
-    out: Path = opt.out_option("runs/seed"),
+    out: Path = opt.output_option(OUTPUT),
     seed: int = opt.seed_option(SeedTrainConfig),
     max_minutes: float | None = opt.max_minutes_option(SeedTrainConfig),
+    old_width: int | None = opt.old_channels_option(),
+    old_out: Path | None = opt.old_output_option(),
 ) -> None:
     """Train the first-point sampler on DATA: record how well seeds drawn with the Sequential-RANSAC weights
     do along a sequential fit of each training scene, then fit the one-map network to those scores. The
@@ -70,6 +75,8 @@ def train_seed_cmd(
 
     Use them with: cuboids fit ... --sampler learned --weights OUT/sampler_v3.pt
     """
+    out = opt.output_folder(out, old_out, OUTPUT)
+    width = opt.channels(width, old_width, SeedTrainConfig)
     options = dict(locals())
     from cuboidcli.learn.seed_train import train_seed_sampler
 

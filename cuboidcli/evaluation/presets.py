@@ -8,8 +8,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
+from cuboidcli.api import SAMPLERS, SOLVERS
 from cuboidcli.fitting.config import OUTDOOR, FitConfig
 from cuboidcli.io.depth import InputError
+
+#: The samplers and solvers an evaluation runs: no ``local`` (sequential with every set localised), no
+#: ``onnx`` (an evaluation takes no ONNX solver file).
+EVAL_SAMPLERS = tuple(s for s in SAMPLERS if s != "local")
+EVAL_SOLVERS = tuple(s for s in SOLVERS if s != "onnx")
 
 
 @dataclass(frozen=True)

@@ -26,7 +26,7 @@ from cuboidcli.export.html import import_plotly, page, plot_div, png_data_uri
 from cuboidcli.io.atomic import atomic_write_text
 
 if TYPE_CHECKING:
-    from cuboidcli.evaluation.runner import EvalReport
+    from cuboidcli.evaluation.runner import EvalReport, EvalSettings
 
 #: Panels of at most this many worst frames (lowest AUC at the largest threshold) are embedded.
 WORST_FRAMES = 4
@@ -82,6 +82,32 @@ def metrics_table(report: EvalReport) -> str:
             f"<tr><td>{html.escape(key)}</td>{_cell(mean)}" + (_cell(std) if runs > 1 else "") + "</tr>"
         )
     return f'<table id="metrics"><thead>{head}</thead><tbody>\n' + "\n".join(rows) + "\n</tbody></table>"
+
+
+def run_meta(
+    report: EvalReport, settings: EvalSettings, command: str, dataset, presets: list[str], method: str
+) -> dict:
+    """What ``metrics.json`` and the page record of a run besides its metrics (:func:`provenance` shows
+    them): the command line, the dataset (as :func:`~cuboidcli.evaluation.runner.load_frames` describes
+    it), the presets applied, the method's label, the folders of saved fits and weights, the input, the
+    depth model (a hub id as given, a file resolved) and the frames done and skipped. ``settings``: as
+    given to the run (a weights folder left out is recorded as None, not as the default the run used)."""
+    s = settings
+    model = s.depth_model
+    return {
+        "command": command,
+        "dataset": dataset,
+        "presets": presets,
+        "method": method,
+        "fits_dir": None if s.fits_dir is None else str(Path(s.fits_dir).resolve()),
+        "weights_dir": None if s.weights_dir is None else str(Path(s.weights_dir).resolve()),
+        "input": "rgb" if s.rgb else "depth",
+        "depth_model": None
+        if model is None
+        else (model if isinstance(model, str) else str(Path(model).resolve())),
+        "frames_done": report.counts.done,
+        "frames_skipped": report.counts.skipped,
+    }
 
 
 def provenance(report: EvalReport, meta: dict) -> str:

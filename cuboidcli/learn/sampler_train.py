@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, replace
 from pathlib import Path
 
 import numpy as np
@@ -55,19 +55,14 @@ from cuboidcli.fitting.pipeline import PreparedPoints, fit_depth
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext
+from cuboidcli.learn.draws import EPOCH_SEED_STRIDE, RANK_SEED_STRIDE, draw_generator, draw_seed, draw_states
+from cuboidcli.learn.sampler_config import SamplerSchedule, SamplerTrainConfig
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
-from cuboidcli.learn.sampler_loss import (
-    CORR_MODES,
-    LossParams,
-    LossSettings,
-    instance_loss,
-    occlusion_threshold,
-)
+from cuboidcli.learn.sampler_loss import LossParams, instance_loss
 from cuboidcli.learn.trainer import (
     OneNetJob,
     Run,
     RunConfig,
-    RunFields,
     StepResult,
     Validation,
     batched,
@@ -83,85 +78,24 @@ from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver
 from cuboidcli.weights import FILES
 
+#: Importable from here too: the configs (:mod:`cuboidcli.learn.sampler_config`) and the draw generators
+#: (:mod:`cuboidcli.learn.draws`) fine-tuning shares with this trainer.
+__all__ = [
+    "EPOCH_SEED_STRIDE",
+    "RANK_SEED_STRIDE",
+    "STATE_KIND",
+    "SamplerJob",
+    "SamplerSchedule",
+    "SamplerTrainConfig",
+    "draw_generator",
+    "draw_seed",
+    "draw_states",
+    "train_sampler",
+    "train_scene",
+    "validate",
+]
+
 STATE_KIND = "sampler-train-state"
-#: Rank r's draw seed is offset by r * RANK_SEED_STRIDE and a rank new to a resumed run's by the epoch times
-#: EPOCH_SEED_STRIDE: the streams cannot meet as long as 0 <= seed < 2^32, epochs < 2^16 and ranks < 2^15.
-RANK_SEED_STRIDE = 2**48
-EPOCH_SEED_STRIDE = 2**32
-
-
-def draw_seed(seed: int, rank: int = 0, epoch: int = 0) -> int:
-    """Seed of the hypothesis-draw generator of ``rank``, started at ``epoch`` (0 for a fresh run, the
-    resume epoch for a rank the checkpoint has no state for). Rank 0 of a fresh run: ``seed + 1``, the
-    single-process stream."""
-    return seed + 1 + rank * RANK_SEED_STRIDE + epoch * EPOCH_SEED_STRIDE
-
-
-@dataclass(frozen=True)
-class SamplerSchedule(LossSettings, RunFields):
-    """The settings a sampler training run (:class:`SamplerTrainConfig`) and a fine-tuning run
-    (:class:`cuboidcli.learn.finetune.FinetuneConfig`) share: the sampling-weight network's loss
-    (:class:`~cuboidcli.learn.sampler_loss.LossSettings`), the frames, validation and the run
-    (:class:`~cuboidcli.learn.trainer.RunFields`). Defaults are the
-    sampler trainer's; a subclass redeclares a field to give it another default (and docstring)."""
-
-    epochs: int = 25
-    """N_e: epochs (also the length of the tau_c schedule)."""
-    lr: float = 1e-4
-    """Adam learning rate (the paper: 1e-5 on a GPU).
-
-    The paper uses 1e-5 for 25 epochs of the 795 NYU training frames (~10k Adam
-    steps at B = 2); a CPU budget of a few thousand steps moves each weight by at most ~steps * lr, so the
-    default is 10x the paper's. Lower it (or use 1e-5) for long runs if the validation AUC oscillates."""
-    batch: int = 2
-    """B: scenes per optimizer step (over all processes)."""
-    instances: int = 8
-    """|M|: sequential instances per scene."""
-    corr_mode: str = "positive"
-    """l_corr variant (see sampler_loss.LossSettings.corr_mode); "paper" is the paper's plain sum."""
-    scenes_per_epoch: int | None = None
-    """Scenes per epoch; None = every training frame once (the paper used 500 random scenes for SMH)."""
-    grid_step: int = 8
-    """Fitting points: every n-th pixel (8: 60x80 of 480x640)."""
-    workers: int = 1
-    """Threads reading and preparing frames."""
-    val_hypotheses: int = 256
-    """|H| when fitting the validation frames (the paper tests with 4096)."""
-    val_frames: int | None = None
-    """Validate on at most this many val frames (None = all)."""
-    validate_initial: bool = True
-    """Validate the untrained net before the first epoch (a reference point in the log)."""
-
-    def __post_init__(self) -> None:
-        if self.corr_mode not in CORR_MODES:
-            raise ValueError(f"corr_mode must be one of {CORR_MODES}, got {self.corr_mode!r}")
-        if self.samples_k < 2:
-            raise ValueError("samples_k (K) must be at least 2: the baseline of K = 1 cancels the signal")
-        for name in ("epochs", "batch", "hypotheses", "instances", "grid_step", "threads", "workers"):
-            if getattr(self, name) < 1:
-                raise ValueError(f"{name} must be at least 1, got {getattr(self, name)}")
-
-
-@dataclass(frozen=True)
-class SamplerTrainConfig(SamplerSchedule):
-    """Schedule and bookkeeping of a sampler training run; defaults are the paper's NYU values except lr.
-    The fields it shares with fine-tuning are :class:`SamplerSchedule`'s."""
-
-    tau_c_start_sq_m2: float = 1.0
-    """tau_c at epoch 0, m^2 (the "1" of the paper's schedule)."""
-    keep_snapshots: int = 3
-    """epoch_XXX.pt files kept."""
-
-    def loss_params(self, fit: FitConfig, epoch: int) -> LossParams:
-        """The loss of an instance in ``epoch``: this config's :class:`LossSettings`, ``fit``'s minimal set
-        and inlier function and the epoch's occlusion threshold."""
-        return LossParams(
-            **{f.name: getattr(self, f.name) for f in fields(LossSettings)},
-            min_set=fit.min_set,
-            tau_sq_m2=fit.tau_sq_m2,
-            beta=fit.beta,
-            tau_c_sq_m2=occlusion_threshold(epoch, self.epochs, fit.tau_sq_m2, self.tau_c_start_sq_m2),
-        )
 
 
 def train_scene(
@@ -264,26 +198,6 @@ def validate(
         key = "mean_inlier_fraction"
     out["seconds"] = time.perf_counter() - start
     return out, key, float(out[key])
-
-
-def draw_generator(seed: int, ctx: DistContext, state: dict | None, epoch: int) -> torch.Generator:
-    """This rank's hypothesis-draw generator: :func:`draw_seed` of a fresh run, or the rank's state in a
-    resumed run's ``draw_rngs`` (a rank the checkpoint has no state for, resumed on more processes than it
-    was written by, starts the fresh stream of its rank and the resume epoch)."""
-    gen = torch.Generator().manual_seed(draw_seed(seed, ctx.rank))  # rank 0: seed + 1
-    if state is not None:
-        draw_rngs = state.get("draw_rngs") or [state["draw_rng"]]  # older checkpoints: rank 0's only
-        if ctx.rank < len(draw_rngs):
-            gen.set_state(draw_rngs[ctx.rank])
-        else:
-            gen.manual_seed(draw_seed(seed, ctx.rank, epoch))
-    return gen
-
-
-def draw_states(gen: torch.Generator, ctx: DistContext) -> dict:
-    """The training-state entries of the draw generators: every rank's (``draw_rngs``, a collective) and
-    rank 0's (``draw_rng``, as single-process checkpoints hold it)."""
-    return {"draw_rng": gen.get_state(), "draw_rngs": ctx.gather(gen.get_state())}
 
 
 class SamplerJob(OneNetJob):

@@ -3,9 +3,11 @@
 A job says what is particular to it: its data, networks and optimizer (:meth:`~TrainingJob.setup`), one
 optimizer step (:meth:`~TrainingJob.step`, on the items :meth:`~TrainingJob.batches` yields), validation
 (:meth:`~TrainingJob.validate`) and what it adds to the training state (:meth:`~TrainingJob.state`); a
-job that trains one network derives from :class:`OneNetJob`. A :class:`RunConfig` says where and how
-long (the trainers' configs share the fields it takes over, :class:`RunFields`, and their learning-rate
-schedule, :class:`WarmupCosine`). The loop does the rest, the same way for every job:
+job that trains one network derives from :class:`OneNetJob` (both: :mod:`cuboidcli.learn.job`). A
+:class:`RunConfig` says where and how long (the trainers' configs share the fields it takes over,
+:class:`RunFields`, and their learning-rate schedule, :class:`WarmupCosine`; all three:
+:mod:`cuboidcli.learn.run_config`); :mod:`cuboidcli.learn.training_state` reads the training state it
+saves. The trainers import these names from here. The loop does the rest, the same way for every job:
 
 - **Processes.** It joins the ``torchrun`` process group for the run (:mod:`cuboidcli.learn.distributed`)
   and sets torch's thread count, restoring it afterwards. Every rank runs the job's steps and validations
@@ -35,306 +37,42 @@ from __future__ import annotations
 
 import json
 import math
-import re
 import time
-from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterable, Iterator
-from dataclasses import asdict, dataclass, field, fields, replace
 from pathlib import Path
-from typing import ClassVar, TypeVar
 
 import numpy as np
 import torch
 
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
-from cuboidcli.io.checkpoints import read_checkpoint
-from cuboidcli.learn.distributed import DistContext, distributed, launched_world_size, state_sha256
-from cuboidcli.nets.checkpoint import NetConfig, parameter_count
+from cuboidcli.learn.distributed import DistContext, distributed, launched_world_size
+from cuboidcli.learn.job import OneNetJob, StepResult, TrainingJob, Validation
+from cuboidcli.learn.run_config import RunConfig, RunFields, WarmupCosine
+from cuboidcli.learn.training_state import LAST, LEGACY_STATE_KEYS, params_sha256, read_state, resumed
+from cuboidcli.nets.checkpoint import parameter_count
 
-LAST = "last.pt"
-"""The training state a run resumes from."""
-
-#: Keys of the training states written before this loop, and the names they have now.
-LEGACY_STATE_KEYS = {"iteration": "step", "best_msd_m2": "best", "best_abs_rel": "best", "rng": "torch_rng"}
-
-Config = TypeVar("Config")
+#: The names the trainers import from here, defined in the modules of the run's parts.
+__all__ = [
+    "LAST",
+    "LEGACY_STATE_KEYS",
+    "OneNetJob",
+    "Run",
+    "RunConfig",
+    "RunFields",
+    "StepResult",
+    "TrainingJob",
+    "Validation",
+    "WarmupCosine",
+    "batched",
+    "params_sha256",
+    "read_state",
+    "resumed",
+    "run_job",
+    "shared_batch_step",
+]
 
 #: The loop's clock (tests replace it).
 _clock = time.perf_counter
-
-
-@dataclass(frozen=True)
-class RunConfig:
-    """Where a run writes, how long it runs and how often it logs, validates and saves."""
-
-    out_dir: Path
-    seed: int = 0
-    """Seeds torch's global RNG before :meth:`TrainingJob.setup` (the networks' initial weights)."""
-    max_epochs: int | None = None
-    """Epoch-based run: the job's :meth:`~TrainingJob.batches` are one epoch; validation and ``last.pt``
-    after each."""
-    max_steps: int | None = None
-    """Step-based run (``max_epochs`` None): steps in all; validation and saves every N steps."""
-    max_minutes: float | None = None
-    stop_within_epoch: bool = False
-    """Check the time limit after every step (always so in a step-based run), else after every epoch."""
-    minutes_span_resumes: bool = False
-    """``max_minutes`` counts the time of all sessions of a resumed run, else of this session."""
-    log_every: int | None = 1
-    """A step record every N steps (None: none)."""
-    val_every: int | None = None
-    """Step-based runs: validate every N steps (None: only at the last step)."""
-    save_every: int | None = None
-    """Step-based runs: ``last.pt`` (and a snapshot) every N steps (None: only at the last step)."""
-    keep_snapshots: int = 0
-    """Snapshots of the training state kept besides ``last.pt`` (0: none written)."""
-    snapshot_name: str = "epoch_{epoch:03d}.pt"
-    """File name of a snapshot, formatted with ``epoch`` and ``step``."""
-    validate_initial: bool = False
-    """Validate before the first step of a fresh run (a reference point; a candidate for the best weights
-    when the job says so, :attr:`TrainingJob.initial_is_candidate`)."""
-    stop_after_epochs: int | None = None
-    """End after this many epochs in all, as an interruption would (tests)."""
-    resume: Path | None = None
-    """The state the run continued from (for ``config.json``; :func:`run_job` reads it if not given)."""
-    threads: int | None = 1
-    """torch's CPU threads during the run (None: as they are)."""
-    device: str = "cpu"
-    """torch device; under torchrun ``cuda`` becomes the rank's GPU (``cuda:LOCAL_RANK``)."""
-    backend: str | None = None
-    """Process-group backend under torchrun (None: nccl on CUDA, gloo on the CPU)."""
-
-    def __post_init__(self) -> None:
-        if (self.max_epochs is None) == (self.max_steps is None):
-            raise ValueError("a run is either epoch-based (max_epochs) or step-based (max_steps)")
-        for name in ("log_every", "val_every", "save_every"):
-            value = getattr(self, name)
-            if value is not None and value < 1:
-                raise ValueError(f"{name} must be at least 1, got {value}")
-        if self.keep_snapshots < 0:
-            raise ValueError(f"keep_snapshots must not be negative, got {self.keep_snapshots}")
-
-    @classmethod
-    def of(cls, cfg: object, out_dir: str | Path, resume: str | Path | None = None, **settings) -> RunConfig:
-        """The run of a trainer's config dataclass ``cfg``: every field of this class that ``cfg`` has a
-        field of the same name for (``seed``, ``max_minutes``, ``threads``, ``device``, ...) takes
-        ``cfg``'s value; ``settings`` set the others (``max_epochs=cfg.epochs``) or replace those."""
-        own = {f.name for f in fields(cls)} - {"out_dir", "resume"}
-        taken = {f.name: getattr(cfg, f.name) for f in fields(cfg) if f.name in own}
-        resume = None if resume is None else Path(resume)
-        return cls(Path(out_dir), resume=resume, **{**taken, **settings})
-
-    @property
-    def step_based(self) -> bool:
-        return self.max_epochs is None
-
-    def snapshot_glob(self) -> str:
-        """The snapshots' file names as a glob pattern (``epoch_*.pt``)."""
-        return re.sub(r"\{[^}]*\}", "*", self.snapshot_name)
-
-
-@dataclass(frozen=True)
-class RunFields:
-    """The fields of a trainer's config that :meth:`RunConfig.of` takes over into its run: the seed, where
-    the steps run and the time budget. A config redeclares a field to give it another default."""
-
-    seed: int = 0
-    """Seeds the initial weights (of a network trained from scratch) and every random draw of the run: the
-    order of the data, the batches, augmentation, hypotheses."""
-    threads: int = 1
-    """torch CPU threads (the machine's cores are shared)."""
-    device: str = "cpu"
-    """torch device of the training steps."""
-    max_minutes: float | None = None
-    """Time budget, minutes of training wall time; the run then ends with a validation and a checkpoint.
-    Solver and depth training sum the sessions of a resumed run and their cosine decay follows the budget
-    when it runs ahead (not bit-exact then); sampler training and fine-tuning count this session and stop
-    after the epoch in which it ran out."""
-
-
-@dataclass(frozen=True)
-class WarmupCosine:
-    """The learning-rate schedule of a trainer's config: a linear warm-up to ``lr``, then a cosine decay to
-    ``lr * final_lr_ratio``, with the gradients clipped to a global norm. A config redeclares a field to
-    give it another default."""
-
-    lr: float = 1e-3
-    """Peak learning rate: warm-up, then cosine decay."""
-    warmup: int = 500
-    """Linear warm-up steps from lr / warmup to lr."""
-    final_lr_ratio: float = 0.02
-    """The cosine decay ends at lr * final_lr_ratio."""
-    grad_clip: float = 1.0
-    """Max global gradient norm."""
-
-    def lr_at(self, step: int, total: int, time_fraction: float = 0.0) -> float:
-        """The learning rate of step ``step`` (0-based) of ``total``: the warm-up over ``warmup`` steps,
-        then the cosine decay, which follows the time budget (``time_fraction``, the share used) when that
-        runs out first."""
-        if step < self.warmup:
-            return self.lr * (step + 1) / self.warmup
-        progress = min(1.0, max((step - self.warmup) / max(1, total - self.warmup), time_fraction))
-        ratio = self.final_lr_ratio
-        return self.lr * (ratio + (1.0 - ratio) * 0.5 * (1.0 + math.cos(math.pi * progress)))
-
-
-@dataclass
-class StepResult:
-    """What one optimizer step reports."""
-
-    metrics: dict[str, float]
-    """Averaged over the steps of a log record and of an epoch record."""
-    fields: dict = field(default_factory=dict)
-    """Written as they are (the latest step's) into the step record: lr, the scenes of the step, ..."""
-    items: int = 0
-    """Sets, images or scenes the step saw over all ranks: the step record's rate (``rate_key``)."""
-
-
-@dataclass
-class Validation:
-    value: float
-    """What selects the best weights."""
-    record: dict
-    """The ``val`` record's fields (metrics)."""
-
-
-class TrainingJob(ABC):
-    """One kind of training, run by :func:`run_job`. Subclasses set the class attributes that name their
-    records and files and implement the abstract methods; the others have defaults."""
-
-    name: ClassVar[str] = "training"
-    """In messages ("cuboids train NAME")."""
-    state_kind: ClassVar[str]
-    """The ``kind`` of its training states (``last.pt``)."""
-    step_event: ClassVar[str] = "step"
-    """The ``event`` of its step records."""
-    end_event: ClassVar[str] = "end"
-    """The ``event`` of its final record."""
-    rate_key: ClassVar[str | None] = None
-    """Key of the step record's throughput: items (:attr:`StepResult.items`) per second."""
-    lower_is_better: ClassVar[bool] = False
-    """Validation values: lower ones are better (a residual, an error), else higher ones (an AUC)."""
-    initial_is_candidate: ClassVar[bool] = False
-    """The initial validation's weights may be the best ones (fine-tuning), else it is only logged."""
-    distributed: ClassVar[bool] = True
-    """Supports data-parallel runs under torchrun; False: refused with WORLD_SIZE > 1."""
-
-    optimizer: torch.optim.Optimizer | None = None
-    """Set by :meth:`setup`; its state goes into ``last.pt`` and comes back on resume."""
-
-    @abstractmethod
-    def setup(self, run: Run, state: dict | None) -> None:
-        """Load the data, build the networks and :attr:`optimizer`; with ``state`` (resuming), restore the
-        networks and the job's own generators from it. ``run.step``, ``run.epoch`` and ``run.best`` are
-        already restored; the optimizer and torch's global RNG are restored after this returns."""
-
-    @abstractmethod
-    def batches(self, run: Run) -> Iterable:
-        """The items of the next epoch, one per step (a step-based job may yield without end)."""
-
-    @abstractmethod
-    def step(self, run: Run, batch) -> StepResult:
-        """One optimizer step on ``batch`` (``run.step`` counts the steps done before it)."""
-
-    @abstractmethod
-    def validate(self, run: Run) -> Validation | None:
-        """Validate the current networks; None when there is nothing to validate on."""
-
-    @abstractmethod
-    def state(self, run: Run) -> dict:
-        """The job's entries of the training state (its networks, configs, generators). Called on every
-        rank (it may gather); rank 0 writes the file."""
-
-    @abstractmethod
-    def networks(self) -> dict[str, torch.nn.Module]:
-        """The networks being trained, by name: their parameters are counted and hashed."""
-
-    @abstractmethod
-    def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
-        """The weights files to write when the validation improved: file name -> weights dict."""
-
-    def settings(self, run: Run) -> dict:
-        """The resolved settings, for ``config.json``."""
-        return {}
-
-    def start_fields(self, run: Run) -> dict:
-        """More fields of the ``start`` record."""
-        return {}
-
-    def end_fields(self, run: Run) -> dict:
-        """More fields of the final record."""
-        return {}
-
-    def agreement(self) -> object:
-        """What every rank must hold equal besides the weights (the names of its data), checked once."""
-        return None
-
-
-class OneNetJob(TrainingJob):
-    """A job that trains one network, :attr:`net` (built from :attr:`net_cfg`), under the trainer's config
-    dataclass :attr:`cfg`. Its training state holds the net's config (``config``) and weights
-    (``state_dict``) and the trainer's config (``train_config``) besides the entries of
-    :meth:`more_state`."""
-
-    net_name: ClassVar[str]
-    """The network's name in :meth:`networks`."""
-    cfg: object
-    """The trainer's config (a dataclass)."""
-    net: torch.nn.Module
-    """Set by :meth:`setup`."""
-    net_cfg: NetConfig
-    """The net's config (set by :meth:`setup` at the latest)."""
-
-    @abstractmethod
-    def more_state(self, run: Run) -> dict:
-        """The job's entries of the training state besides the net and the configs (its generators, the
-        configs of its data and fitting)."""
-
-    def state(self, run: Run) -> dict:
-        own = {"config": self.net_cfg.to_dict(), "state_dict": self.net.state_dict()}
-        return {**own, **self.more_state(run), "train_config": asdict(self.cfg)}
-
-    def networks(self) -> dict[str, torch.nn.Module]:
-        return {self.net_name: self.net}
-
-
-def read_state(path: str | Path, kind: str, what: str, hint: str = LAST) -> dict:
-    """The training state stored at ``path``, with the keys of older files renamed
-    (:data:`LEGACY_STATE_KEYS`); ValueError naming ``what`` and ``hint`` when it holds something else."""
-    state = read_checkpoint(path)
-    if state.get("kind") != kind:
-        raise ValueError(f"{path} is not a {what} checkpoint (use {hint})")
-    for old, new in LEGACY_STATE_KEYS.items():
-        if old in state and new not in state:
-            state[new] = state.pop(old)
-    return state
-
-
-def resumed(
-    resume: str | Path | None,
-    given: Config,
-    keep: Iterable[str],
-    kind: str,
-    what: str,
-    hint: str = LAST,
-    key: str = "train_config",
-) -> tuple[dict | None, Config]:
-    """What a trainer called with ``resume`` goes on from: the training state stored there
-    (:func:`read_state` of ``kind``, ``what`` and ``hint``) and the config of the checkpoint (its entry
-    ``key``, a dict of the dataclass type of ``given``) with the fields ``keep`` taken from ``given``.
-    A fresh run (``resume`` None): None and ``given``."""
-    if resume is None:
-        return None, given
-    state = read_state(resume, kind, what, hint)
-    return state, replace(type(given)(**state[key]), **{k: getattr(given, k) for k in keep})
-
-
-def params_sha256(networks: dict[str, torch.nn.Module]) -> str:
-    """One hash of the networks' weights (:func:`state_sha256`): of the state dict of a single network, of
-    the names prefixed by the network's name for several."""
-    if len(networks) == 1:
-        return state_sha256(next(iter(networks.values())).state_dict())
-    return state_sha256({f"{k}.{n}": t for k, m in networks.items() for n, t in m.state_dict().items()})
 
 
 def _mean(records: list[dict[str, float]]) -> dict[str, float]:

@@ -73,7 +73,7 @@ def test_synth_depth_flags(app, tmp_path):
     "args, message",
     [
         (["--count", "0"], "--count 0"),
-        (["--preset", "kinect9"], "--preset 'kinect9'"),
+        (["--camera", "kinect9"], "--camera 'kinect9'"),
         (["--width", "8"], "too small"),
         (["--workers", "0"], "--workers 0"),
         (["--views", "0"], "--views 0"),
@@ -119,3 +119,20 @@ def test_synth_views_writes_room_scans(app, tmp_path):
         assert is_scene_input(scene) and len(read_sequence(scene).frames) == 3
     # the two rooms differ
     assert (out / "scene_0000" / "gt.json").read_bytes() != (out / "scene_0001" / "gt.json").read_bytes()
+
+
+def test_preset_is_the_old_spelling_of_camera(app, tmp_path):
+    """``--camera`` names the intrinsics preset (as on ``cuboids fit``); ``--preset`` still works, hidden,
+    with one warning, and writes the same files."""
+    old = _run(app, tmp_path / "old", "-n", 1, "--width", 64, "--preset", "tum")
+    new = _run(app, tmp_path / "new", "-n", 1, "--width", 64, "--camera", "tum")
+    assert old.exit_code == 0 and new.exit_code == 0, old.output + new.output
+    assert old.output.count("deprecated") == 1 and "--preset is deprecated; use --camera" in old.output
+    assert "deprecated" not in new.output
+    assert _tree(tmp_path / "old") == _tree(tmp_path / "new")
+    cams = json.loads((tmp_path / "new" / "cameras.json").read_text())
+    assert cams["000000"]["fx"] == pytest.approx(525.0 * 64 / 640)  # TUM's, not NYU's 518.86
+    both = _run(app, tmp_path / "both", "-n", 1, "--width", 64, "--preset", "tum", "--camera", "scannet")
+    assert both.exit_code == 2 and "give only --camera" in both.output
+    help_text = _run(app, "--help").output
+    assert "--camera" in help_text and "--preset" not in help_text

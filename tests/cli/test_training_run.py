@@ -39,7 +39,7 @@ def test_a_refused_run_fails_in_one_line_and_leaves_no_folder(command, tmp_path,
         raise ValueError("batch 9 is larger than the 8 frames")
 
     out = tmp_path / "out"
-    result = _run(command, tmp_path, monkeypatch, refuse, "--out", str(out))
+    result = _run(command, tmp_path, monkeypatch, refuse, "--output", str(out))
     assert result.exit_code == 2, result.output
     assert "error: batch 9 is larger than the 8 frames" in result.output
     assert not out.exists()
@@ -53,7 +53,7 @@ def test_ctrl_c_names_the_checkpoint_to_resume(command, tmp_path, monkeypatch):
         raise KeyboardInterrupt
 
     out = tmp_path / "out"
-    result = _run(command, tmp_path, monkeypatch, interrupted, "--out", str(out))
+    result = _run(command, tmp_path, monkeypatch, interrupted, "--output", str(out))
     assert result.exit_code == 130, result.output
     assert f"interrupted; continue with --resume {out / 'last.pt'}" in result.output
 
@@ -63,7 +63,53 @@ def test_ctrl_c_before_the_first_checkpoint_has_nothing_to_resume(command, tmp_p
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt
 
-    result = _run(command, tmp_path, monkeypatch, interrupted, "--out", str(tmp_path / "out"))
+    result = _run(command, tmp_path, monkeypatch, interrupted, "--output", str(tmp_path / "out"))
     assert result.exit_code == 130, result.output
     assert "nothing to resume" in result.output
     assert not (tmp_path / "out").exists()
+
+
+def _calls(command: str, tmp_path, monkeypatch, *more: str):
+    """The arguments the trainer got (callables left out: the commands pass fresh closures), and the
+    command's output."""
+    calls = []
+
+    def record(*args, **kwargs):
+        calls.append(
+            ([a for a in args if not callable(a)], {k: v for k, v in kwargs.items() if not callable(v)})
+        )
+        return {"iteration": 0, "timed_out": False, "best": "best.pt"}  # the final record solver prints
+
+    result = _run(command, tmp_path, monkeypatch, record, *more)
+    assert result.exit_code == 0, result.output
+    return calls, result.output
+
+
+#: Old spellings that still work (hidden from --help, one warning): (old, new, value) per command.
+RENAMED = [
+    *((command, "--out", "--output", "run") for command in sorted(TRAINERS)),
+    *((command, "--width", "--channels", "16") for command in ("sampler", "seed", "solver")),
+]
+
+
+@pytest.mark.parametrize(("command", "old", "new", "value"), RENAMED)
+def test_an_old_spelling_works_as_the_new_one_with_a_warning(command, old, new, value, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # the default output folder is relative
+    if value == "run":
+        value = str(tmp_path / "run")
+    given_old, text_old = _calls(command, tmp_path, monkeypatch, old, value)
+    given_new, text_new = _calls(command, tmp_path, monkeypatch, new, value)
+    default, _ = _calls(command, tmp_path, monkeypatch)
+    assert given_old == given_new and given_old != default
+    assert text_old.count("deprecated") == 1 and f"{old} is deprecated; use {new}" in text_old
+    assert "deprecated" not in text_new
+    both = _run(command, tmp_path, monkeypatch, lambda *a, **k: None, old, value, new, value)
+    assert both.exit_code == 2 and f"give only {new}" in both.output
+    help_text = CliRunner().invoke(app, ["train", command, "--help"]).output
+    assert new in help_text and f"{old} " not in help_text
+
+
+def test_width_still_means_the_image_width_of_synth():
+    """``--width`` of the train commands is spelled ``--channels``: only ``cuboids synth`` has a --width."""
+    for command in TRAINERS:
+        assert "--width " not in CliRunner().invoke(app, ["train", command, "--help"]).output

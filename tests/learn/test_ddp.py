@@ -20,7 +20,7 @@ pytestmark = pytest.mark.skipif(
     reason="torch.distributed with the gloo backend is not available in this torch build",
 )
 
-TINY_RUN = ["--width", "16", "--layers", "1", "--heads", "2", "--ff", "32"]
+TINY_RUN = ["--channels", "16", "--layers", "1", "--heads", "2", "--ff", "32"]
 TINY_RUN += ["--iters", "6", "--batch", "8", "--val-every", "3", "--backend", "gloo"]
 
 
@@ -52,7 +52,7 @@ def assert_per_rank_draws(last: dict) -> None:
 
 def test_torchrun_two_processes_train_one_model(tmp_path):
     out = tmp_path / "run"
-    proc = torchrun(tmp_path, "train", "solver", *TINY_RUN, "--out", out)
+    proc = torchrun(tmp_path, "train", "solver", *TINY_RUN, "--output", out)
 
     # One set of outputs, written by rank 0 alone: one line per event, one final message.
     names = sorted(p.name for p in out.iterdir())
@@ -83,14 +83,14 @@ def sampler_dataset(tmp_path_factory):
     return root
 
 
-TINY_SAMPLER_RUN = ["--width", "16", "--blocks", "1", "--upsample", "2", "--grid-step", "4"]
+TINY_SAMPLER_RUN = ["--channels", "16", "--blocks", "1", "--upsample", "2", "--grid-step", "4"]
 TINY_SAMPLER_RUN += ["--epochs", "1", "--batch", "2", "--instances", "1", "--hypotheses", "8"]
 TINY_SAMPLER_RUN += ["--val-hypotheses", "16", "--val-frames", "1", "--backend", "gloo"]
 
 
 def test_torchrun_two_processes_train_one_sampler(tmp_path, sampler_dataset):
     out = tmp_path / "run"
-    proc = torchrun(tmp_path, "train", "sampler", sampler_dataset, *TINY_SAMPLER_RUN, "--out", out)
+    proc = torchrun(tmp_path, "train", "sampler", sampler_dataset, *TINY_SAMPLER_RUN, "--output", out)
 
     # One set of outputs, written by rank 0 alone; rank 0 alone reports (on stderr).
     names = sorted(p.name for p in out.iterdir())
@@ -155,7 +155,7 @@ def test_torchrun_two_processes_finetune(tmp_path, finetune_setup):
     args = ["train", "finetune", finetune_setup / "data", *TINY_FINETUNE_RUN]
     args += ["--sampler-weights", finetune_setup / "sampler.pt"]
     args += ["--depth-weights", finetune_setup / "depth.pt"]
-    proc = torchrun(tmp_path, *args, "--out", out)
+    proc = torchrun(tmp_path, *args, "--output", out)
 
     # One set of outputs, written by rank 0 alone; rank 0 alone reports (on stderr).
     names = sorted(p.name for p in out.iterdir())

@@ -267,13 +267,13 @@ def test_cli_trains_and_reports_errors(tmp_path, tiny_dataset):
     runner = CliRunner()
     out = tmp_path / "cli"
     args = ["sampler", str(tiny_dataset), "--epochs", "1", "--instances", "1", "--hypotheses", "8"]
-    args += ["--grid-step", "4", "--width", "16", "--val-hypotheses", "16", "--out", str(out)]
+    args += ["--grid-step", "4", "--channels", "16", "--val-hypotheses", "16", "--output", str(out)]
     result = runner.invoke(app, args)
     assert result.exit_code == 0, result.output
     assert (out / SAMPLER_FILE).is_file() and (out / "last.pt").is_file()
     bad = runner.invoke(app, ["sampler", str(tmp_path / "missing")])
     assert bad.exit_code == 2 and "dataset folder not found" in bad.output
-    bad = runner.invoke(app, ["sampler", str(tiny_dataset), "--samples-k", "1", "--out", str(out)])
+    bad = runner.invoke(app, ["sampler", str(tiny_dataset), "--samples-k", "1", "--output", str(out)])
     assert bad.exit_code == 2 and "samples_k" in bad.output
 
 
