@@ -169,7 +169,7 @@ CASES = {
         "splits.json must map split names to lists of frame names",
     ),
     "train sampler, splits.json not JSON": (
-        ["train", "sampler", "{c}/bad_splits", "--out", "{out}/run"],
+        ["train", "sampler", "{c}/bad_splits", "--output", "{out}/run"],
         "splits.json is not valid JSON",
     ),
     # evaluate and the trainers
@@ -182,19 +182,19 @@ CASES = {
         "loads no network",
     ),
     "train solver, resume from an object": (
-        ["train", "solver", "--resume", "{c}/object.pt", "--out", "{out}/run"],
+        ["train", "solver", "--resume", "{c}/object.pt", "--output", "{out}/run"],
         "refused",
     ),
     "train sampler, resume from a zip": (
-        ["train", "sampler", "{c}/dataset", "--resume", "{c}/other_tool.pt", "--out", "{out}/run"],
+        ["train", "sampler", "{c}/dataset", "--resume", "{c}/other_tool.pt", "--output", "{out}/run"],
         "cannot read",
     ),
     "train depth, resume truncated": (
-        ["train", "depth", "{c}/dataset", "--resume", "{c}/truncated.pt", "--out", "{out}/run"],
+        ["train", "depth", "{c}/dataset", "--resume", "{c}/truncated.pt", "--output", "{out}/run"],
         "truncated",
     ),
     "train finetune, sampler with an object": (
-        ["train", "finetune", "{c}/dataset", "--sampler-weights", "{c}/object.pt", "--out", "{out}/run"],
+        ["train", "finetune", "{c}/dataset", "--sampler-weights", "{c}/object.pt", "--output", "{out}/run"],
         "refused",
     ),
     "synth, no frames": (["synth", "{out}/synth", "-n", "0"], "at least 1 frame"),

@@ -116,13 +116,13 @@ def no_empty_folder(folder: Path):
 
 
 def check_training_paths(data, resume, out) -> None:
-    """The checks every ``cuboids train`` command makes of its DATA folder, ``--resume`` and ``--out``."""
+    """The checks every ``cuboids train`` command makes of its DATA folder, ``--resume`` and ``--output``."""
     if not data.is_dir():
         fail(f"dataset folder not found: {data}")
     if resume is not None and not resume.is_file():
         fail(f"--resume {resume}: no such checkpoint (give OUT/last.pt)")
     if out.exists() and not out.is_dir():
-        fail(f"--out {out} is a file; give a folder")
+        fail(f"--output {out} is a file; give a folder")
 
 
 @contextmanager

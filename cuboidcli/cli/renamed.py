@@ -30,3 +30,11 @@ def prefer_new(new_value: Any, old_value: Any, old: str, new: str) -> Any:
         fail(f"{old} and {new} are the same option; give only {new}")
     console.print(f"[yellow]warning:[/] {old} is deprecated; use {new}", highlight=False, soft_wrap=True)
     return old_value
+
+
+def renamed_value(value, default, old_value, old: str, new: str):
+    """The value of an option that has a default and an old spelling (:func:`renamed_option`): ``value``,
+    or the old spelling's with a one-line warning when only that was given; both given (``value`` other
+    than ``default``) is an error, as :func:`prefer_new` makes it."""
+    chosen = prefer_new(None if value == default else value, old_value, old, new)
+    return default if chosen is None else chosen

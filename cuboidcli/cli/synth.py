@@ -10,7 +10,7 @@ import typer
 from rich.progress import TimeElapsedColumn, TimeRemainingColumn
 
 from cuboidcli.cli.common import console, fail, progress_bar, user_errors
-from cuboidcli.cli.renamed import prefer_new, renamed_option
+from cuboidcli.cli.renamed import renamed_option, renamed_value
 
 #: Folder of room scan i under OUT_DIR (``cuboids evaluate`` finds the scans by this prefix).
 SCENE_NAME = "scene_{:04d}"
@@ -92,7 +92,7 @@ def synth(
     from cuboidcli.camera import PRESETS, Camera
 
     # --camera counts as given when it is not the default: both spellings given is an error
-    camera_name = prefer_new(None if camera == CAMERA else camera, preset, "--preset", "--camera") or CAMERA
+    camera_name = renamed_value(camera, CAMERA, preset, "--preset", "--camera")
     if count < 1:
         fail(f"--count {count}: give at least 1 frame")
     if workers < 1:

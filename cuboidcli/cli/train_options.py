@@ -20,7 +20,7 @@ from rich.markup import escape
 
 from cuboidcli.cli.common import fail
 from cuboidcli.cli.options import field_help
-from cuboidcli.cli.renamed import prefer_new, renamed_option
+from cuboidcli.cli.renamed import renamed_option, renamed_value
 from cuboidcli.learn.run_config import RunConfig
 
 
@@ -97,14 +97,6 @@ def multi_process(arguments: str, per: str = "GPU or per group of CPU cores", th
         return command
 
     return add
-
-
-def renamed_value(value, default, old_value, old: str, new: str):
-    """The value of an option that has a default and an old spelling (:func:`renamed_option`): ``value``,
-    or the old spelling's with a one-line warning when only that was given; both given (``value`` other
-    than ``default``) is an error, as :func:`prefer_new` makes it."""
-    chosen = prefer_new(None if value == default else value, old_value, old, new)
-    return default if chosen is None else chosen
 
 
 def output_option(default: str):
