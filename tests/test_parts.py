@@ -113,12 +113,18 @@ def test_the_api_and_the_command_line_offer_the_registered_names():
         api.Fitter(sampler="best", device="cpu")
 
 
-def test_fitconfig_documents_every_registered_name():
-    from cuboidcli.cli.options import field_docs
+def test_the_help_lists_every_registered_part_with_its_help():
+    from cuboidcli.cli.options import field_help, field_summary
 
-    docs = field_docs()
     for p in parts.PARTS:
-        assert f"``{p.name}``" in docs[p.role], (p.role, p.name)
+        assert f"``{p.name}`` ({p.help})" in field_summary(p.role), (p.role, p.name)
+        assert f"{p.name} ({p.help.replace('``', '')})" in field_help(p.role)
+    mine = parts.Part("sampler", "mine", "cuboidcli.factories:uniform_sampler", None, "a test sampler")
+    with_mine = (*parts.PARTS, mine)
+    import unittest.mock
+
+    with unittest.mock.patch.object(parts, "PARTS", with_mine):
+        assert field_help("sampler").endswith("mine (a test sampler).")
 
 
 def test_fitconfig_checks_itself_and_names_the_flag_on_the_command_line():

@@ -25,6 +25,7 @@ from rich.markup import escape
 
 from cuboidcli.api import Fitter
 from cuboidcli.cli.common import fail, resolve_device
+from cuboidcli.fitting import parts
 from cuboidcli.fitting.config import FitConfig, setting_error
 from cuboidcli.fitting.parts import SAMPLERS, SOLVERS
 
@@ -70,8 +71,12 @@ def _own_field_docs(cls: type) -> dict[str, str]:
 
 
 def field_summary(name: str, cls: type = FitConfig) -> str:
-    """The first paragraph of field ``name``'s docstring on one line, its ``literals`` as written."""
-    return " ".join(field_docs(cls)[name].split("\n\n", 1)[0].split())
+    """The first paragraph of field ``name``'s docstring on one line, its ``literals`` as written; for the
+    fields that name a sampler or a solver, followed by the registered ones (:func:`parts.describe`)."""
+    text = " ".join(field_docs(cls)[name].split("\n\n", 1)[0].split())
+    if cls is FitConfig and name in parts.ROLES:
+        text = f"{text}: {parts.describe(name)}."
+    return text
 
 
 def field_help(name: str, cls: type = FitConfig) -> str:

@@ -57,11 +57,10 @@ class FitConfig:
     """Score with the occlusion-aware inlier count (OAI); off = plain inlier counting (the paper's no-OAI
     baselines)."""
     sampler: str = "sequential"
-    """Sampling weights of the points of minimal sets (of a localised set's first point): ``sequential``
-    (1 - max(state, 0), Sequential RANSAC: points already explained are drawn less), ``learned`` (the
-    sampling-weight network, Sec. 3.2.1), ``uniform``; ``local`` = sequential with every set localised.
+    """Sampling weights of the points of minimal sets (of a localised set's first point)
 
-    The names are those of :data:`cuboidcli.fitting.parts.PARTS`, where each sampler is registered."""
+    One of the samplers registered in :data:`cuboidcli.fitting.parts.PARTS`; the command line's help lists
+    them with their one-line help (:func:`cuboidcli.fitting.parts.describe`)."""
     local_fraction: float = 0.75
     """Share of minimal sets drawn from a 3D ball (radii ``local_radii_m``) around their first point; 0 = the
     paper's global sets.
@@ -84,10 +83,10 @@ class FitConfig:
     """Adaptive termination: assumed probability that a localised set seeded on a structure yields a
     hypothesis that wins it (a conservative figure; global sets count as never winning a small one)."""
     solver: str = "numerical"
-    """``numerical`` (PCA + Adam), ``neural`` (the regression network), ``onnx`` (the neural solver exported
-    with ``cuboids export --onnx``).
+    """The solver that turns a minimal set into a cuboid
 
-    The names are those of :data:`cuboidcli.fitting.parts.PARTS`, where each solver is registered."""
+    One of the solvers registered in :data:`cuboidcli.fitting.parts.PARTS`; the command line's help lists
+    them with their one-line help (:func:`cuboidcli.fitting.parts.describe`)."""
     a_min: float = 1e-3
     """a_min: smallest cuboid half-size, m."""
     a_max: float = 2.0

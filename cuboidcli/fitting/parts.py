@@ -69,25 +69,31 @@ class Part:
 #: Every sampler and solver, in the order the command line lists them.
 PARTS: tuple[Part, ...] = (
     Part("sampler", "sequential", "cuboidcli.factories:sequential_sampler", None,
-         "1 - max(state, 0): points already explained are drawn less (Sequential RANSAC)"),
+         "1 - max(state, 0), Sequential RANSAC: points already explained are drawn less"),
     Part("sampler", "learned", "cuboidcli.factories:learned_sampler", "sampler",
-         "the sampling-weight network (Sec. 3.2.1)"),
+         "the sampling-weight network, Sec. 3.2.1"),
     Part("sampler", "local", "cuboidcli.factories:local_sampler", None,
-         "sequential, with every minimal set localised in a 3D ball"),
+         "sequential with every set localised"),
     Part("sampler", "uniform", "cuboidcli.factories:uniform_sampler", None,
          "every valid point equally likely"),
     Part("solver", "numerical", "cuboidcli.factories:numerical_solver", None,
-         "PCA and Adam on the minimal set"),
+         "PCA + Adam"),
     Part("solver", "neural", "cuboidcli.factories:neural_solver", "solver",
          "the regression network"),
     Part("solver", "onnx", "cuboidcli.factories:onnx_solver", None,
-         "the neural solver exported with cuboids export --onnx (needs --onnx FILE)"),
+         "the neural solver exported with ``cuboids export --onnx``"),
 )  # fmt: skip
 
 
 def names(role: str) -> tuple[str, ...]:
     """The names of the parts of ``role``, in :data:`PARTS` order."""
     return tuple(p.name for p in PARTS if p.role == role)
+
+
+def describe(role: str) -> str:
+    """Every part of ``role`` with its help, as the settings' documentation and ``--help`` list them:
+    ```sequential`` (...), ``learned`` (...)``."""
+    return ", ".join(f"``{p.name}`` ({p.help})" for p in PARTS if p.role == role)
 
 
 def or_list(words) -> str:
