@@ -18,8 +18,9 @@ import torch
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.evaluation.auc import AucStats
 from cuboidcli.evaluation.coverage import coverage_mask
-from cuboidcli.evaluation.metrics import AucStats, frame_metrics
+from cuboidcli.evaluation.metrics import frame_metrics
 from cuboidcli.evaluation.oa import oa_distances
 from cuboidcli.evaluation.raycast import render_depth
 from cuboidcli.geometry.kernels import oa_sq_distance

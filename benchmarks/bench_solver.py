@@ -29,7 +29,7 @@ def minimal_sets(n_sets: int, set_size: int, seed: int):
     import torch
 
     from cuboidcli.camera import Camera
-    from cuboidcli.fitting.pipeline import prepare_points
+    from cuboidcli.fitting.prepare import prepare_points
     from cuboidcli.synth.scene import generate_scene
 
     cam = Camera.preset("nyu")

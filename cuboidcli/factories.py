@@ -146,8 +146,9 @@ def make_depth_estimator(
     in metres, (H, W), 0 = unknown) or ``camera_height_m`` (the camera's height above the floor).
     Raises a one-line ValueError (FileNotFoundError for a missing file) for anything unusable.
     """
-    from cuboidcli.depth.estimator import BuiltinDepthEstimator, OnnxDepthEstimator
+    from cuboidcli.depth.estimator import BuiltinDepthEstimator
     from cuboidcli.depth.hf import HFDepthEstimator, is_hf_model
+    from cuboidcli.depth.onnx import OnnxDepthEstimator
 
     onnx_opts = {
         "preset": onnx_preset, "mean": onnx_mean, "std": onnx_std, "size": onnx_size,

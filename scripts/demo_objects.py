@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from cuboidcli.camera import Camera
-from cuboidcli.evaluation.metrics import OBJECT_EXPLAIN_PCT
+from cuboidcli.evaluation.object_recall import OBJECT_EXPLAIN_PCT
 from cuboidcli.factories import make_sampler, make_solver
 from cuboidcli.fitting.assign import assign_points
 from cuboidcli.fitting.config import FitConfig

@@ -37,7 +37,8 @@ import numpy as np
 from cuboidcli.camera import valid_depth
 from cuboidcli.depth import estimate_depth
 from cuboidcli.depth.edges import depth_edge_mask
-from cuboidcli.evaluation.metrics import aggregate, frame_metrics, mean_std
+from cuboidcli.evaluation.aggregate import aggregate, mean_std
+from cuboidcli.evaluation.metrics import frame_metrics
 from cuboidcli.evaluation.runner import load_frames
 from cuboidcli.factories import DepthModelOptions, depth_estimator
 from cuboidcli.fitting.config import FitConfig

@@ -15,7 +15,7 @@ import numpy as np
 import torch
 
 from cuboidcli.factories import make_sampler, make_solver
-from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.prepare import prepare_points
 from cuboidcli.io.atomic import atomic_write_bytes
 from cuboidcli.io.dataset import list_frames
 from cuboidcli.sampling import SamplingContext

@@ -8,12 +8,12 @@ import math
 import pytest
 import torch
 
-from cuboidcli.evaluation.metrics import AUC_CM
+from cuboidcli.evaluation.auc import AUC_CM
 from cuboidcli.evaluation.presets import resolve
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.kernels import inlier_fn, occlusion_fn
 from cuboidcli.learn.finetune import FinetuneConfig
-from cuboidcli.learn.sampler_train import SamplerTrainConfig
+from cuboidcli.learn.sampler_config import SamplerTrainConfig
 from cuboidcli.nets.sampler import SamplerNetConfig
 
 

@@ -64,7 +64,7 @@ def _cell(v, digits: int = 2) -> str:
 
 
 def _auc_keys(report: EvalReport) -> list[tuple[float, str]]:
-    from cuboidcli.evaluation.metrics import auc_key
+    from cuboidcli.evaluation.auc import auc_key
 
     return [(float(cm), auc_key(cm)) for cm in report.settings.auc_cm]
 
@@ -205,7 +205,7 @@ def frame_auc_figure(report: EvalReport):
 def recall_figure(report: EvalReport):
     """The recall curve of each run: the share of all frames' points within a distance of the abstraction
     (pooled as the AUC is; AUC@X is the area under it up to X, divided by X). None without curves."""
-    from cuboidcli.evaluation.metrics import RECALL_CURVE_CM, pooled_recall_pct
+    from cuboidcli.evaluation.auc import RECALL_CURVE_CM, pooled_recall_pct
 
     go = import_plotly()
     fig = go.Figure()

@@ -85,7 +85,7 @@ def axis_angles(rotation: np.ndarray, up: np.ndarray, frame: np.ndarray | None) 
 
 def is_slab(half_size: np.ndarray) -> bool:
     """The estimator's slab rule (:func:`cuboidcli.fitting.winner.thin_axis`)."""
-    from cuboidcli.fitting.winner import thin_axis
+    from cuboidcli.fitting.box import thin_axis
 
     return thin_axis(np.asarray(half_size, dtype=np.float64)) >= 0
 
@@ -94,7 +94,7 @@ def room_slabs(depth_m: np.ndarray, camera: Camera, cuboids: list[Cuboid], grid_
     """(M,) bool: which cuboids are slabs of the room's shell
     (:func:`~cuboidcli.fitting.winner.is_room_slab`), judged against the depth map's points on every
     ``grid_step``-th pixel."""
-    from cuboidcli.fitting.winner import is_room_slab
+    from cuboidcli.fitting.shell import is_room_slab
 
     grid = camera.backproject(np.where(valid_depth(depth_m), depth_m, 0.0), grid_step).reshape(-1, 3)
     points = grid[grid[:, 2] > 0].astype(np.float64)

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from cuboidcli.evaluation.metrics import auc_key
+from cuboidcli.evaluation.auc import auc_key
 
 if TYPE_CHECKING:
     from cuboidcli.evaluation.runner import EvalReport

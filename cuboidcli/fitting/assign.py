@@ -6,7 +6,8 @@ import numpy as np
 import torch
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.backend import ScoreParams, ScoringBackend, backend_for
+from cuboidcli.fitting.backend import ScoringBackend, backend_for
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry.kernels import INLIER_CUT
 
 NONE = -1

@@ -211,7 +211,8 @@ class NumbaBackend(ScoringBackend):
     def gains(
         self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf, cells=None
     ):
-        from cuboidcli.geometry.fused import gains_of, inlier_params
+        from cuboidcli.geometry.fused import gains_of
+        from cuboidcli.geometry.inlier import inlier_params
 
         boxes = (_numpy64(x) for x in (centers, half_sizes, rotations))
         params = inlier_params(sp.tau, sp.beta, sp.tau_c, sp.occlusion_aware)
@@ -247,7 +248,7 @@ class NumbaBackend(ScoringBackend):
         a = torch.full((1, 3), 0.5, dtype=torch.float64)
         R = torch.eye(3, dtype=torch.float64)[None]
         sp = ScoreParams(0.004, 5.0, 0.008)
-        from cuboidcli.geometry.fused import ImageCells
+        from cuboidcli.geometry.cells import ImageCells
 
         self.gains(p, c, a, R, torch.zeros(2, dtype=torch.float64), sp)
         cells = ImageCells.of_grid(np.array([0, 1]), np.array([0.0, 0.05]), np.array([0.0]))

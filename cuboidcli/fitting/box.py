@@ -18,8 +18,9 @@ import torch
 from torch import Tensor
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.backend import ScoreParams, ScoringBackend, backend_for
+from cuboidcli.fitting.backend import ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry.kernels import INLIER_CUT, combine
 
 SLAB_RATIO = 0.25

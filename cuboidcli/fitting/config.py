@@ -256,7 +256,6 @@ CHECKS: dict[str, Check] = {
     "backend": Check("{name} must be one of {listed}, got {value!r}", BACKENDS),
     "refine_iters": _AT_LEAST_1,
     "refine_lr": Check("{name} must be positive (got {value})", ok=lambda v: v > 0),
-    "refine_keep": Check("{name} must be at least 0 (got {value})", ok=lambda v: v >= 0),
 }
 
 

@@ -15,7 +15,7 @@ from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.assign import OCCLUDED, assign_points
 from cuboidcli.fitting.backend import backend_for
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.geometry.fused import ImageCells
+from cuboidcli.geometry.cells import ImageCells
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
 from cuboidcli.sampling import SpaceCells
 

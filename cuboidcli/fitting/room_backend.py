@@ -15,8 +15,9 @@ import numpy as np
 import torch
 from torch import Tensor
 
-from cuboidcli.fitting.backend import NOMINATED, PRUNE_MARGIN, ScoreParams, ScoringBackend
+from cuboidcli.fitting.backend import NOMINATED, PRUNE_MARGIN, ScoringBackend
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.room import RoomPoints, refine_surface_adam, room_gains, room_params, room_values
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle

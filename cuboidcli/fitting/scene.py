@@ -28,7 +28,8 @@ from cuboidcli.fitting.assign import assign_points
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.objects import SceneObject, group_objects
-from cuboidcli.fitting.pipeline import FitInfo, PreparedPoints, ProgressFn, fit_points, warm_up_parts
+from cuboidcli.fitting.pipeline import FitInfo, ProgressFn, fit_points, warm_up_parts
+from cuboidcli.fitting.prepare import PreparedPoints
 from cuboidcli.fitting.room_backend import RoomBackend, warm_up_room
 from cuboidcli.fitting.shell import cuboid_kind
 from cuboidcli.geometry.cloud import RoomUp, estimate_normals, free_side_normals, room_up, voxel_groups

@@ -10,9 +10,10 @@ import numpy as np
 import torch
 
 from cuboidcli.fitting.align import Alignment
-from cuboidcli.fitting.backend import ScoreParams, ScoringBackend, backend_for
+from cuboidcli.fitting.backend import ScoringBackend, backend_for
 from cuboidcli.fitting.box import Box
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry.kernels import INLIER_CUT
 from cuboidcli.sampling import Sampler, SamplingContext, draw_hypotheses, local_fraction_of
 from cuboidcli.solvers.base import CuboidSolver, solve_upright

@@ -15,7 +15,7 @@ import math
 import numpy as np
 from numba import njit
 
-from cuboidcli.geometry.fused import camera_local, occluding_sides
+from cuboidcli.geometry.inlier import camera_local, occluding_sides
 
 
 @njit(cache=True, inline="always")

@@ -33,20 +33,14 @@ import numpy as np
 import torch
 import torch.nn.functional as F  # noqa: N812 - the usual alias
 
-from cuboidcli.depth.estimator import BuiltinDepthEstimator, resize
+from cuboidcli.depth.estimator import BuiltinDepthEstimator
 from cuboidcli.depth.evaluate import evaluate_frames
+from cuboidcli.depth.image import resize
 from cuboidcli.io.dataset import Frame, list_frames
-from cuboidcli.learn.trainer import (
-    OneNetJob,
-    Run,
-    RunConfig,
-    RunFields,
-    StepResult,
-    Validation,
-    WarmupCosine,
-    resumed,
-    run_job,
-)
+from cuboidcli.learn.job import OneNetJob, StepResult, Validation
+from cuboidcli.learn.run_config import RunConfig, RunFields, WarmupCosine
+from cuboidcli.learn.trainer import Run, run_job
+from cuboidcli.learn.training_state import resumed
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
 from cuboidcli.nets.depth import DepthNet, DepthNetConfig
 from cuboidcli.weights import FILES

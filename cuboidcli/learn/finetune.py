@@ -70,19 +70,12 @@ from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.draws import draw_generator, draw_states
 from cuboidcli.learn.finetune_data import Scene, has_rgb, load_scene
 from cuboidcli.learn.finetune_loss import Nets, backproject_grid, load_nets, predicted_grid, scene_loss
+from cuboidcli.learn.job import StepResult, TrainingJob, Validation
+from cuboidcli.learn.run_config import RunConfig
 from cuboidcli.learn.sampler_config import SamplerSchedule
 from cuboidcli.learn.sampler_data import dataset_splits, epoch_order
-from cuboidcli.learn.trainer import (
-    Run,
-    RunConfig,
-    StepResult,
-    TrainingJob,
-    Validation,
-    batched,
-    resumed,
-    run_job,
-    shared_batch_step,
-)
+from cuboidcli.learn.trainer import Run, batched, run_job, shared_batch_step
+from cuboidcli.learn.training_state import resumed
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.sampling.learned import LearnedSampler
 from cuboidcli.weights import FILES
@@ -170,7 +163,8 @@ def validate(
     With an active ``ctx`` (a collective: every rank calls it) rank r fits frames r, r + W, ... and the
     per-frame metrics are gathered in frame order, so every rank returns the same numbers, equal to one
     process's; ``seconds`` is this rank's wall time."""
-    from cuboidcli.evaluation.metrics import aggregate, frame_metrics
+    from cuboidcli.evaluation.aggregate import aggregate
+    from cuboidcli.evaluation.metrics import frame_metrics
     from cuboidcli.solvers.neural import NeuralSolver
     from cuboidcli.solvers.numerical import NumericalSolver
 

@@ -10,7 +10,7 @@ import torch
 from torch import Tensor
 
 from cuboidcli.camera import Camera
-from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.prepare import prepare_points
 from cuboidcli.io.dataset import Frame
 
 
@@ -45,7 +45,7 @@ def load_scene(frame: Frame, grid_step: int, rgb_size: tuple[int, int] | None) -
         grid_step,
     )
     if rgb_size is not None:
-        from cuboidcli.depth.estimator import resize
+        from cuboidcli.depth.image import resize
 
         image = frame.rgb()
         if image is None:

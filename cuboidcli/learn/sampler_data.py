@@ -15,7 +15,7 @@ from pathlib import Path
 import torch
 
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import PreparedPoints, prepare_points
+from cuboidcli.fitting.prepare import PreparedPoints, prepare_points
 from cuboidcli.io.dataset import Frame, list_frames, read_splits
 
 

@@ -51,25 +51,19 @@ import numpy as np
 import torch
 
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import PreparedPoints, fit_depth
+from cuboidcli.fitting.pipeline import fit_depth
+from cuboidcli.fitting.prepare import PreparedPoints
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.draws import EPOCH_SEED_STRIDE, RANK_SEED_STRIDE, draw_generator, draw_seed, draw_states
+from cuboidcli.learn.job import OneNetJob, StepResult, Validation
+from cuboidcli.learn.run_config import RunConfig
 from cuboidcli.learn.sampler_config import SamplerSchedule, SamplerTrainConfig
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
 from cuboidcli.learn.sampler_loss import LossParams, instance_loss
-from cuboidcli.learn.trainer import (
-    OneNetJob,
-    Run,
-    RunConfig,
-    StepResult,
-    Validation,
-    batched,
-    resumed,
-    run_job,
-    shared_batch_step,
-)
+from cuboidcli.learn.trainer import Run, batched, run_job, shared_batch_step
+from cuboidcli.learn.training_state import resumed
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext
@@ -188,7 +182,8 @@ def validate(
     per_frame = [r[2] for r in ordered]
     out = {"mean_inlier_fraction": float(np.mean(fractions)), "cuboids": float(np.mean(counts))}
     if with_metrics:
-        from cuboidcli.evaluation.metrics import aggregate, auc_key
+        from cuboidcli.evaluation.aggregate import aggregate
+        from cuboidcli.evaluation.auc import auc_key
 
         agg = aggregate(per_frame)
         agg.pop("time_s", None)

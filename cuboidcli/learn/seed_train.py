@@ -27,20 +27,16 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from cuboidcli.fitting.backend import ScoreParams, gains_cpu
+from cuboidcli.fitting.box import values_one
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import PreparedPoints
-from cuboidcli.fitting.winner import values_one
+from cuboidcli.fitting.prepare import PreparedPoints
+from cuboidcli.fitting.scoring import ScoreParams, gains_cpu
 from cuboidcli.geometry.kernels import combine
+from cuboidcli.learn.job import OneNetJob, StepResult
+from cuboidcli.learn.run_config import RunConfig
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, prepare_scenes
-from cuboidcli.learn.trainer import (
-    OneNetJob,
-    Run,
-    RunConfig,
-    StepResult,
-    resumed,
-    run_job,
-)
+from cuboidcli.learn.trainer import Run, run_job
+from cuboidcli.learn.training_state import resumed
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext, SequentialSampler, draw_hypotheses

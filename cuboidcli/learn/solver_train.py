@@ -34,17 +34,10 @@ from torch import Tensor
 
 from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.io.checkpoints import read_checkpoint
-from cuboidcli.learn.trainer import (
-    OneNetJob,
-    Run,
-    RunConfig,
-    RunFields,
-    StepResult,
-    Validation,
-    WarmupCosine,
-    resumed,
-    run_job,
-)
+from cuboidcli.learn.job import OneNetJob, StepResult, Validation
+from cuboidcli.learn.run_config import RunConfig, RunFields, WarmupCosine
+from cuboidcli.learn.trainer import Run, run_job
+from cuboidcli.learn.training_state import resumed
 from cuboidcli.nets.checkpoint import checkpoint_dict, parameter_count
 from cuboidcli.nets.solver import SolverNet, SolverNetConfig
 from cuboidcli.solvers.synthetic import SyntheticBatch, SyntheticConfig, seeded_batch

@@ -15,7 +15,7 @@ import numpy as np
 from numba import njit, prange
 
 from cuboidcli.geometry.adam import adam_update, rodrigues
-from cuboidcli.geometry.fused import to_local
+from cuboidcli.geometry.inlier import to_local
 
 
 @njit(cache=True)

@@ -10,7 +10,9 @@ import pytest
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.metrics import ObjectCounts, aggregate, frame_metrics, object_counts
+from cuboidcli.evaluation.aggregate import aggregate
+from cuboidcli.evaluation.metrics import frame_metrics
+from cuboidcli.evaluation.object_recall import ObjectCounts, object_counts
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.synth.render import render_boxes
 from tests.conftest import simple_room

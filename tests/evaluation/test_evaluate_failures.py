@@ -11,7 +11,8 @@ from typer.testing import CliRunner
 
 from cuboidcli.cli.main import app
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.metrics import aggregate, frame_metrics
+from cuboidcli.evaluation.aggregate import aggregate
+from cuboidcli.evaluation.metrics import frame_metrics
 from cuboidcli.evaluation.raycast import render_depth
 from cuboidcli.evaluation.runner import EvalSettings, MissingFrame, evaluate, load_frames
 from cuboidcli.fitting.config import FitConfig

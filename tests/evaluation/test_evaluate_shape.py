@@ -13,7 +13,8 @@ from typer.testing import CliRunner
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.metrics import aggregate, frame_metrics, gravity_summary, shape_summary
+from cuboidcli.evaluation.aggregate import aggregate, gravity_summary, shape_summary
+from cuboidcli.evaluation.metrics import frame_metrics
 from cuboidcli.evaluation.runner import EvalSettings, evaluate, load_frames
 from cuboidcli.evaluation.shape import (
     ShapeMetrics,

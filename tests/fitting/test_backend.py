@@ -14,11 +14,12 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.assign import NONE, OCCLUDED, assign_points
-from cuboidcli.fitting.backend import HybridBackend, NumbaBackend, ScoreParams, TorchBackend, backend_for
+from cuboidcli.fitting.backend import HybridBackend, NumbaBackend, TorchBackend, backend_for
 from cuboidcli.fitting.box import values_one
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import fit_points, prepare_points
-from cuboidcli.fitting.prepare import grid_assignment
+from cuboidcli.fitting.pipeline import fit_points
+from cuboidcli.fitting.prepare import grid_assignment, prepare_points
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.sampling import SequentialSampler
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver

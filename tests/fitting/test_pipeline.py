@@ -6,7 +6,7 @@ import torch
 
 from cuboidcli.cuboid import stack_cuboids
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.prepare import prepare_points
 from cuboidcli.geometry.kernels import cuboid_sq_distance, inlier_fn, oa_sq_distance, oai_of_set, to_local
 from tests.conftest import fit_named, simple_room
 

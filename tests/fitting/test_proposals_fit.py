@@ -12,10 +12,10 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.presets import resolve
 from cuboidcli.factories import make_solver
-from cuboidcli.fitting.backend import ScoreParams, gains_torch, values_torch
 from cuboidcli.fitting.box import Box, Scored, StepContext
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.prepare import prepare_points
+from cuboidcli.fitting.scoring import ScoreParams, gains_torch, values_torch
 from cuboidcli.fitting.search import gain_upper_bound, miss_probability
 from cuboidcli.fitting.winner import grow_cuboid
 from cuboidcli.io.depth import read_depth

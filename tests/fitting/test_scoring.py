@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 import torch
 
-from cuboidcli.fitting.backend import NumbaBackend, ScoreParams, gains_torch
+from cuboidcli.fitting.backend import NumbaBackend
+from cuboidcli.fitting.scoring import ScoreParams, gains_torch
 from tests.geometry.test_fused import BETA, TAU, scene
 
 SP = ScoreParams(TAU, BETA, 2 * TAU)

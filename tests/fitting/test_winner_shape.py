@@ -12,10 +12,10 @@ import pytest
 import torch
 
 from cuboidcli.fitting.align import Alignment, edge_to_vertical
-from cuboidcli.fitting.backend import ScoreParams
 from cuboidcli.fitting.box import Box, StepContext, values_one
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.refit import refit_box
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.fitting.winner import grow_cuboid, square_slab
 from cuboidcli.synth import render_boxes
 from tests.conftest import simple_room

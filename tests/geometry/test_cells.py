@@ -6,8 +6,9 @@ import pytest
 import torch
 
 from cuboidcli.camera import Camera
-from cuboidcli.fitting.backend import NumbaBackend, ScoreParams
-from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.backend import NumbaBackend
+from cuboidcli.fitting.prepare import prepare_points
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.cells import ImageCells
 from cuboidcli.geometry.fused import score_gains

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from cuboidcli.fitting.backend import NumbaBackend, ScoreParams, gains_torch
+from cuboidcli.fitting.backend import NumbaBackend
+from cuboidcli.fitting.scoring import ScoreParams, gains_torch
 from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.fused import cuboid_values, score_gains
 from cuboidcli.geometry.rotations import axis_angle_to_matrix

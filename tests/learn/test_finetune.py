@@ -8,18 +8,9 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.factories import load_learned_sampler
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.learn.finetune import (
-    DEPTH_NAME,
-    SAMPLER_NAME,
-    SOLVER_NAME,
-    FinetuneConfig,
-    Nets,
-    backproject_grid,
-    finetune,
-    load_scene,
-    predicted_grid,
-    scene_loss,
-)
+from cuboidcli.learn.finetune import DEPTH_NAME, SAMPLER_NAME, SOLVER_NAME, FinetuneConfig, finetune
+from cuboidcli.learn.finetune_data import load_scene
+from cuboidcli.learn.finetune_loss import Nets, backproject_grid, predicted_grid, scene_loss
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.nets.solver import SolverNet, SolverNetConfig
@@ -57,7 +48,7 @@ def weights(tmp_path_factory):
 
 
 def _nets(weights, rgb: bool, neural: bool) -> Nets:
-    from cuboidcli.learn.finetune import load_nets
+    from cuboidcli.learn.finetune_loss import load_nets
 
     cfg = FinetuneConfig(rgb=rgb, solver="neural" if neural else "numerical")
     return load_nets(cfg, weights / "sampler.pt", weights / "solver.pt", weights / "depth.pt")

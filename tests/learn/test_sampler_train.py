@@ -9,8 +9,9 @@ import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.factories import load_learned_sampler
-from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.prepare import prepare_points
 from cuboidcli.geometry.kernels import oai_per_cuboid
+from cuboidcli.learn.sampler_config import SamplerTrainConfig
 from cuboidcli.learn.sampler_loss import (
     LossParams,
     correlation_loss,
@@ -23,7 +24,7 @@ from cuboidcli.learn.sampler_loss import (
     occlusion_threshold,
     set_log_prob,
 )
-from cuboidcli.learn.sampler_train import SamplerTrainConfig, train_sampler, train_scene
+from cuboidcli.learn.sampler_train import train_sampler, train_scene
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext
 from cuboidcli.sampling.learned import grid_inputs

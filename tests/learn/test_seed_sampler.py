@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.prepare import prepare_points
 from cuboidcli.learn.seed_train import SeedTrainConfig, record_loss, scene_records
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig
 from cuboidcli.sampling import SamplingContext

@@ -11,7 +11,10 @@ import pytest
 import torch
 
 from cuboidcli.learn import trainer
-from cuboidcli.learn.trainer import RunConfig, StepResult, TrainingJob, Validation, read_state, run_job
+from cuboidcli.learn.job import StepResult, TrainingJob, Validation
+from cuboidcli.learn.run_config import RunConfig
+from cuboidcli.learn.trainer import run_job
+from cuboidcli.learn.training_state import read_state
 
 
 class LineJob(TrainingJob):

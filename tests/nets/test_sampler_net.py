@@ -6,7 +6,7 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.factories import load_learned_sampler, make_sampler
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import prepare_points
+from cuboidcli.fitting.prepare import prepare_points
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.sampler import SamplerNet, SamplerNetConfig, net_from_checkpoint
 from cuboidcli.sampling import SamplingContext
