@@ -17,10 +17,7 @@ from __future__ import annotations
 import importlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
-
-if TYPE_CHECKING:
-    from cuboidcli.fitting.config import FitConfig
+from typing import Any
 
 #: The roles of a part: the FitConfig field that names it.
 ROLES = ("sampler", "solver")
@@ -31,8 +28,9 @@ class BuildInputs:
     """What a builder gets. The factories resolve the weights file with the weights registry before they
     call it, so a part never looks weights up itself."""
 
-    config: FitConfig
-    """The fit's settings (bounds, learning rate, backend, ...)."""
+    config: Any
+    """The fit's settings, a :class:`~cuboidcli.fitting.config.FitConfig` (bounds, learning rate, backend,
+    ...); not imported here because the config reads this registry."""
     weights: Path | None = None
     """The file of the part's network (:attr:`Part.network`); None for a part that loads none."""
     onnx: Path | None = None

@@ -27,7 +27,7 @@ from cuboidcli.sampling import draw_sets_and_maps
 from cuboidcli.weights import default_path, resolve
 
 if TYPE_CHECKING:
-    from cuboidcli.learn.finetune import FinetuneConfig
+    from cuboidcli.learn.finetune_config import FinetuneConfig
 
 
 def predicted_grid(depth_net, scene: Scene) -> Tensor:

@@ -7,14 +7,40 @@ from __future__ import annotations
 from abc import ABC, abstractmethod
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, ClassVar
+from pathlib import Path
+from typing import ClassVar, Protocol
 
 import torch
 
+from cuboidcli.learn.distributed import DistContext
 from cuboidcli.nets.checkpoint import NetConfig
 
-if TYPE_CHECKING:
-    from cuboidcli.learn.trainer import Run
+
+class RunView(Protocol):
+    """What a job sees of the loop's run (:class:`cuboidcli.learn.trainer.Run` is the one the loop makes):
+    its counters, where it writes, the processes and the device, the clock and the log."""
+
+    ctx: DistContext
+    device: torch.device
+    out_dir: Path
+    epoch: int
+    """Epochs done."""
+    step: int
+    """Optimizer steps done."""
+    best: float
+    """The best validation value so far."""
+
+    def elapsed(self) -> float:
+        """Wall time of the run, all sessions."""
+        ...
+
+    def time_fraction(self) -> float:
+        """Share of the run's time limit used (0 without one)."""
+        ...
+
+    def emit(self, record: dict) -> None:
+        """Report a record (rank 0) without logging it."""
+        ...
 
 
 @dataclass
@@ -63,25 +89,25 @@ class TrainingJob(ABC):
     """Set by :meth:`setup`; its state goes into ``last.pt`` and comes back on resume."""
 
     @abstractmethod
-    def setup(self, run: Run, state: dict | None) -> None:
+    def setup(self, run: RunView, state: dict | None) -> None:
         """Load the data, build the networks and :attr:`optimizer`; with ``state`` (resuming), restore the
         networks and the job's own generators from it. ``run.step``, ``run.epoch`` and ``run.best`` are
         already restored; the optimizer and torch's global RNG are restored after this returns."""
 
     @abstractmethod
-    def batches(self, run: Run) -> Iterable:
+    def batches(self, run: RunView) -> Iterable:
         """The items of the next epoch, one per step (a step-based job may yield without end)."""
 
     @abstractmethod
-    def step(self, run: Run, batch) -> StepResult:
+    def step(self, run: RunView, batch) -> StepResult:
         """One optimizer step on ``batch`` (``run.step`` counts the steps done before it)."""
 
     @abstractmethod
-    def validate(self, run: Run) -> Validation | None:
+    def validate(self, run: RunView) -> Validation | None:
         """Validate the current networks; None when there is nothing to validate on."""
 
     @abstractmethod
-    def state(self, run: Run) -> dict:
+    def state(self, run: RunView) -> dict:
         """The job's entries of the training state (its networks, configs, generators). Called on every
         rank (it may gather); rank 0 writes the file."""
 
@@ -90,18 +116,18 @@ class TrainingJob(ABC):
         """The networks being trained, by name: their parameters are counted and hashed."""
 
     @abstractmethod
-    def best_weights(self, run: Run, validation: dict) -> dict[str, dict]:
+    def best_weights(self, run: RunView, validation: dict) -> dict[str, dict]:
         """The weights files to write when the validation improved: file name -> weights dict."""
 
-    def settings(self, run: Run) -> dict:
+    def settings(self, run: RunView) -> dict:
         """The resolved settings, for ``config.json``."""
         return {}
 
-    def start_fields(self, run: Run) -> dict:
+    def start_fields(self, run: RunView) -> dict:
         """More fields of the ``start`` record."""
         return {}
 
-    def end_fields(self, run: Run) -> dict:
+    def end_fields(self, run: RunView) -> dict:
         """More fields of the final record."""
         return {}
 
@@ -126,11 +152,11 @@ class OneNetJob(TrainingJob):
     """The net's config (set by :meth:`setup` at the latest)."""
 
     @abstractmethod
-    def more_state(self, run: Run) -> dict:
+    def more_state(self, run: RunView) -> dict:
         """The job's entries of the training state besides the net and the configs (its generators, the
         configs of its data and fitting)."""
 
-    def state(self, run: Run) -> dict:
+    def state(self, run: RunView) -> dict:
         own = {"config": self.net_cfg.to_dict(), "state_dict": self.net.state_dict()}
         return {**own, **self.more_state(run), "train_config": asdict(self.cfg)}
 
