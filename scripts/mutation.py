@@ -62,28 +62,34 @@ TARGETS = (
         ("pca_init",),
         ("tests/solvers/test_solver_numerical.py",),
     ),
-    Target(
-        "metrics",
-        "cuboidcli/evaluation/metrics.py",
-        None,
-        (
-            "tests/evaluation/test_metrics_edges.py",
-            "tests/evaluation/test_metrics.py",
-            "tests/evaluation/test_eval_objects.py",
-            "tests/evaluation/test_evaluate_failures.py",
-        ),
+    *(
+        Target(
+            name,
+            f"cuboidcli/evaluation/{name}.py",
+            None,
+            (
+                "tests/evaluation/test_metrics_edges.py",
+                "tests/evaluation/test_metrics.py",
+                "tests/evaluation/test_eval_objects.py",
+                "tests/evaluation/test_evaluate_failures.py",
+            ),
+        )
+        for name in ("metrics", "auc", "aggregate", "object_recall")
     ),
-    Target(
-        "backend",
-        "cuboidcli/fitting/backend.py",
-        None,
-        (
-            "tests/fitting/test_backend.py",
-            "tests/fitting/test_scoring.py",
-            "tests/geometry/test_fused.py",
-            "tests/fitting/test_pipeline.py",
-            "tests/learn/test_seed_sampler.py",
-        ),
+    *(
+        Target(
+            name,
+            f"cuboidcli/fitting/{name}.py",
+            None,
+            (
+                "tests/fitting/test_backend.py",
+                "tests/fitting/test_scoring.py",
+                "tests/geometry/test_fused.py",
+                "tests/fitting/test_pipeline.py",
+                "tests/learn/test_seed_sampler.py",
+            ),
+        )
+        for name in ("backend", "scoring", "refine")
     ),
 )
 

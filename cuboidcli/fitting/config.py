@@ -145,7 +145,7 @@ class FitConfig:
     estimator.
 
     Refinement minimises the inliers' occlusion-aware distance and keeps the refined box only if its
-    inlier-count gain does not drop (fitting/winner.py refine_winner, fitting/backend.py refine_cuboid)."""
+    inlier-count gain does not drop (fitting/winner.py refine_winner, fitting/refine.py)."""
     grow_rounds: int = 8
     """After refinement, up to this many rounds push the winner's faces outwards while its inlier-count
     gain rises (fitting/winner.py grow_cuboid): a minimal set of six points spans only part of a wall or

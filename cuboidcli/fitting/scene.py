@@ -41,7 +41,7 @@ from cuboidcli.solvers.base import CuboidSolver
 #: is furniture, not a wall (m). On the synthetic room scans it turns the backs of sofas, the sides of beds
 #: and shelves into objects: shell precision 57 -> 70 % (sequences), 64 -> 80 % (bare clouds), recall equal.
 WALL_TOP_GAP_M = 0.5
-#: Visibility choices: the three kernels and "auto" (views when the points keep their cameras, else inside).
+#: Visibility choices: the three kernels and "auto" (views: a bare cloud is seen from virtual cameras).
 VISIBILITY_CHOICES = ("auto", *VISIBILITY)
 
 
@@ -64,7 +64,7 @@ class SceneConfig:
     visibility: str = "auto"
     """How points count against a cuboid: ``views`` (a cuboid must not hide a point from the camera that saw
     it), ``inside`` (observed surface points must not lie inside a solid box), ``plain`` (no penalty);
-    ``auto`` = views when the points keep their cameras, else inside."""
+    ``auto`` = views (a bare cloud is seen from virtual cameras just outside its surfaces)."""
     up: tuple[float, float, float] | None = None
     """The up direction in the input's frame; None = estimated (the Manhattan axis nearest the hint)."""
     virtual_view_m: float = 0.5

@@ -23,9 +23,6 @@ from numba import njit, prange
 from cuboidcli.geometry.cells import ImageCells, box_sum, grid_reach
 from cuboidcli.geometry.inlier import camera_local, inlier_params, pair_value, to_local
 
-# re-exported: the numerical solver's fused loops (cuboidcli.solvers.adam_fused) import it from here
-from cuboidcli.geometry.inlier import occluding_sides as occluding_sides
-
 
 @njit(cache=True)
 def _screen(t0, t1, t2, a0, a1, a2, R, cutoff):
