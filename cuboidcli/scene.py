@@ -279,6 +279,7 @@ def write_scene_outputs(
 
 
 def _write_overlays(result: FitResult, seq: Sequence, stem: Path) -> list[Path]:
+    from cuboidcli.export.files import frame_overlay_path
     from cuboidcli.export.overlay import render_images, write_png
     from cuboidcli.io.depth import read_depth, read_rgb
 
@@ -296,7 +297,7 @@ def _write_overlays(result: FitResult, seq: Sequence, stem: Path) -> list[Path]:
             rgb = cv2.resize(rgb, (depth.shape[1], depth.shape[0]), interpolation=cv2.INTER_AREA)
         boxes = camera_cuboids(result.cuboids, f.world_from_camera)
         images = render_images(seq.camera, boxes, rgb=rgb, depth_m=depth)
-        path = Path(f"{stem}_overlay_{f.name}.png")
+        path = frame_overlay_path(stem, f.name)
         written.append(write_png(path, images["overlay"]))
     return written
 

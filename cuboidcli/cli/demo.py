@@ -19,6 +19,8 @@ def demo(
     device: str = device_option(),
 ) -> None:
     """Fit the embedded sample scene (a synthetic room) and write JSON, GLB, PLY and overlay PNGs."""
+    from cuboidcli.export.files import result_name
+
     depth = SAMPLE_DIR / "sample_depth.png"
     if not depth.is_file():
         fail(f"the embedded sample is missing from {SAMPLE_DIR}; reinstall the package")
@@ -27,7 +29,7 @@ def demo(
         image=SAMPLE_DIR / "sample.png",
         depth=depth,
         intrinsics=str(SAMPLE_DIR / "camera.json"),
-        output=output / "sample_cuboids.json",
+        output=output / result_name(SAMPLE_DIR / "sample.png"),
         seed=seed,
         device=device,
         glb=True,

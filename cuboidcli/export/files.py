@@ -96,6 +96,11 @@ def output_paths(
     return paths
 
 
+def frame_overlay_path(stem: str | Path, frame: str) -> Path:
+    """A room's overlay drawn on its sequence's frame ``frame``, beside the result ``<stem>.json``."""
+    return Path(f"{stem}_overlay_{frame}.png")
+
+
 def output_files(
     out_json: str | Path, *, glb: bool, ply: bool, overlay: bool, scenes: tuple[str, ...]
 ) -> list[Path]:
