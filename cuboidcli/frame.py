@@ -1,5 +1,6 @@
-"""Loading one frame's inputs (depth, or RGB with depth estimated from it, and intrinsics) and packaging a
-fit as a FitResult: what ``cuboids fit`` and a folder of frames run around :class:`cuboidcli.api.Fitter`."""
+"""Loading one frame's inputs (depth, or RGB with depth estimated from it, and intrinsics) as a
+:class:`FrameInput` that :meth:`cuboidcli.api.Fitter.fit_frame` fits: what ``cuboids fit`` reads for one
+frame and for each frame of a folder (:class:`cuboidcli.folder.FrameJob`)."""
 
 from __future__ import annotations
 
@@ -10,11 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cuboidcli.camera import PRESETS, Camera, valid_depth
-from cuboidcli.cuboid import Cuboid
+from cuboidcli.camera import PRESETS, Camera
 from cuboidcli.factories import DepthModelOptions, depth_estimator
-from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.pipeline import FitInfo
 from cuboidcli.io.depth import (
     InputError,
     Intrinsics,
@@ -25,7 +23,10 @@ from cuboidcli.io.depth import (
     read_rgb,
 )
 from cuboidcli.io.photo import DEFAULT_FOV_DEG, centred_intrinsics, default_camera, read_photo
-from cuboidcli.io.result import FitResult
+from cuboidcli.io.result import frame_result, input_record
+
+#: The packaging of a fit, named as :mod:`cuboidcli.api` imports it from here.
+make_result = frame_result
 
 
 @dataclass
@@ -71,7 +72,7 @@ def load_frame(
     A photo's EXIF orientation is applied, so the frame is upright; ``-K`` describes the upright image.
     """
     if preset is not None and preset not in PRESETS:
-        raise InputError(f"unknown --preset {preset!r}; choose one of: {', '.join(PRESETS)}")
+        raise InputError(f"unknown --camera {preset!r}; choose one of: {', '.join(PRESETS)}")
     if depth_path is None and image_path is None:
         raise InputError("give a depth map (--depth D.png) or an RGB image")
     name = frame_name or Path(depth_path if depth_path is not None else image_path).stem
@@ -96,16 +97,14 @@ def load_frame(
         notes.append(_guessed(intr))
     notes += check_inputs(depth, intr, None if rgb is None else rgb.shape)
     camera = intr.camera(w, h)
-    meta = {
-        "depth": None if depth_path is None else str(depth_path),
-        "image": None if image_path is None else str(image_path),
-        "depth_source": source or "depth map",
-        "depth_scale": scale,
-        "width": w,
-        "height": h,
-        "valid_fraction": round(float(valid_depth(depth).mean()), 6),
-        "intrinsics_source": intr.source,
-    }
+    meta = input_record(
+        depth,
+        depth=depth_path,
+        image=image_path,
+        depth_source=source or "depth map",
+        depth_scale=scale,
+        intrinsics_source=intr.source,
+    )
     if "edges_dropped" in timing:
         meta["depth_edges_dropped"] = round(float(timing["edges_dropped"]), 6)
     return FrameInput(depth, camera, rgb, scale, notes, meta, timing.get("depth"))
@@ -117,7 +116,7 @@ _NO_INTRINSICS = Intrinsics(0.0, 0.0, 0.0, 0.0)
 
 def _guessed(intr: Intrinsics) -> str:
     return (
-        f"no camera intrinsics (no -K, --preset or EXIF focal length): assuming a {DEFAULT_FOV_DEG:g} degree "
+        f"no camera intrinsics (no -K, --camera or EXIF focal length): assuming a {DEFAULT_FOV_DEG:g} degree "
         f"field of view across the long side (fx = {intr.fx:.1f} px); pass -K fx,fy,cx,cy for exact boxes"
     )
 
@@ -182,55 +181,3 @@ def _edges_dropped(depth: np.ndarray, intr: Intrinsics, opts: DepthModelOptions,
     if not (depth > 0).any():
         raise ValueError(f"{source}: no depth is left after dropping its edges (try --keep-depth-edges)")
     return depth
-
-
-def make_result(
-    camera: Camera,
-    cuboids: list[Cuboid],
-    info: FitInfo,
-    config: FitConfig,
-    input_meta: dict,
-    solver_name: str,
-    sampler_name: str,
-    extra_settings: dict | None = None,
-) -> FitResult:
-    settings = {
-        **config.to_dict(),
-        "theta_used": info.theta,
-        "solver_name": solver_name,
-        "sampler_name": sampler_name,
-        **(extra_settings or {}),
-    }
-    fit_info = {
-        "n_points": info.n_points,
-        "grid_step": info.grid_step,
-        "iterations": info.iterations,
-        "batches": info.batches,
-        "stop_reason": info.stop_reason,
-        "rejected_gain": info.rejected_gain,
-        "gains": info.gains,
-        "align": info.align,
-        "aligned": info.aligned,
-        "warnings": info.warnings,
-    }
-    extras = {"fit_info": fit_info}
-    if info.gravity is not None:
-        extras["gravity"] = info.gravity.to_dict()
-        extras["world_from_camera"] = info.gravity.world_from_camera().tolist()
-    return FitResult(
-        camera=camera,
-        cuboids=cuboids,
-        settings=settings,
-        timing_s=info.timing_s,
-        input=input_meta,
-        extras=extras,
-    )
-
-
-def same_settings(saved: dict, config: FitConfig, extra_settings: dict | None = None) -> bool:
-    """Whether a saved result's ``settings`` (as :func:`make_result` writes them) are those of ``config``
-    and ``extra_settings`` (the weights used): a rerun may then keep that result instead of fitting again."""
-    import json
-
-    wanted = {**json.loads(json.dumps(config.to_dict())), **(extra_settings or {})}
-    return all(saved.get(k) == v for k, v in wanted.items())

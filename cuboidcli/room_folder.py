@@ -13,9 +13,11 @@ import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from cuboidcli.export.files import output_files, result_name
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scene import SceneConfig
-from cuboidcli.folder import fitter_for, output_files, saved_settings
+from cuboidcli.folder import fitter_for
+from cuboidcli.io.result import same_settings, saved_settings
 from cuboidcli.scaleout import Outcome, failed
 
 
@@ -49,14 +51,31 @@ def rooms_in(folder: Path) -> list[Path]:
     return sorted(p for p in folder.iterdir() if not p.name.startswith(".") and is_scene_input(p))
 
 
-def out_name(room: Path) -> str:
-    return f"{room.name if room.is_dir() else room.stem}_cuboids.json"
+def is_rooms_folder(path: Path) -> bool:
+    """A folder of rooms (scan files, sequence sub-folders) and no images (which would make it a folder of
+    frames)."""
+    from cuboidcli.io.inputs import has_images
+
+    return path.is_dir() and not has_images(path) and bool(rooms_in(path))
+
+
+def room_tasks(
+    job: RoomJob, rooms: list[Path], out_dir: Path, skip_existing: bool
+) -> tuple[list[tuple[RoomJob, str, str]], list[Path]]:
+    """The :func:`fit_room_file` tasks (job, room, result JSON) of a folder's rooms, their results in
+    ``out_dir``, and the rooms left out with ``skip_existing`` because their outputs are complete."""
+    tasks, skipped = [], []
+    for room in rooms:
+        out_json = Path(out_dir) / result_name(room)
+        if skip_existing and room_is_complete(out_json, job):
+            skipped.append(room)
+        else:
+            tasks.append((job, str(room), str(out_json)))
+    return tasks, skipped
 
 
 def room_is_complete(out_json: Path, job: RoomJob) -> bool:
     """The room's outputs exist and its JSON was fitted with ``job``'s settings."""
-    from cuboidcli.frame import same_settings
-
     saved = saved_settings(out_json, job.outputs(out_json))
     if saved is None:
         return False
@@ -70,7 +89,6 @@ def fit_room_file(job: RoomJob, source: str, out_json: str) -> Outcome:
     """Fit one room and write its outputs; a failed Outcome (one line) for unusable input. ``value`` is
     (cuboids, fitting seconds, fitting points)."""
     import warnings
-
 
     name = Path(source).name
     try:

@@ -242,43 +242,44 @@ def write_scene_outputs(
     levelled (+Y up), its optional points are the input's coloured by cuboid; the PLY has the input's points
     coloured by cuboid (grey: none) and the cuboid meshes; overlays are drawn on the first, middle and
     last frame of a sequence with the world cuboids projected into them."""
-    from cuboidcli.export import scene_path, write_scene
+    from cuboidcli.export import write_scene
+    from cuboidcli.export.files import output_paths
     from cuboidcli.export.glb import write_glb
     from cuboidcli.export.ply import label_colors, write_cuboid_ply, write_point_ply
     from cuboidcli.io.result import write_result
 
     stem = out_json.with_suffix("")
+    paths = output_paths(stem, glb=glb, ply=ply, scenes=scenes)
     written = []
     cloud = scene_input.cloud
     colors = label_colors(info.point_labels)
     if glb:
         pts, pc = (cloud.points, colors) if with_points else (None, None)
         meta = {"schema": "cuboids/1", "frame": "world", "n_cuboids": len(result.cuboids)}
-        path = Path(f"{stem}.glb")
         glb_file = write_glb(
-            path, result.cuboids, points=pts, point_colors=pc, metadata=meta, up=info.up.up,
+            paths["glb"], result.cuboids, points=pts, point_colors=pc, metadata=meta, up=info.up.up,
             objects=object_boxes(info),
         )  # fmt: skip
         written.append(glb_file)
     if ply:
-        written.append(write_point_ply(Path(f"{stem}_points.ply"), cloud.points, colors))
-        written.append(write_cuboid_ply(Path(f"{stem}_cuboids.ply"), result.cuboids))
+        written.append(write_point_ply(paths["points_ply"], cloud.points, colors))
+        written.append(write_cuboid_ply(paths["cuboids_ply"], result.cuboids))
     if overlay and scene_input.sequence is not None:
         written.extend(_write_overlays(result, scene_input.sequence, stem))
     for kind in scenes:
-        path = scene_path(stem, kind)
         if kind == "html":  # the room's own points in the viewer
             from cuboidcli.export.html import write_html
 
-            written.append(write_html(result, path, points=cloud.points, point_colors=colors))
+            written.append(write_html(result, paths[kind], points=cloud.points, point_colors=colors))
         else:
-            written.append(write_scene(kind, result, path))
+            written.append(write_scene(kind, result, paths[kind]))
     # the JSON last: its presence means every output of the room was written
     written.append(write_result(out_json, result))
     return written
 
 
 def _write_overlays(result: FitResult, seq: Sequence, stem: Path) -> list[Path]:
+    from cuboidcli.export.files import frame_overlay_path
     from cuboidcli.export.overlay import render_images, write_png
     from cuboidcli.io.depth import read_depth, read_rgb
 
@@ -296,7 +297,7 @@ def _write_overlays(result: FitResult, seq: Sequence, stem: Path) -> list[Path]:
             rgb = cv2.resize(rgb, (depth.shape[1], depth.shape[0]), interpolation=cv2.INTER_AREA)
         boxes = camera_cuboids(result.cuboids, f.world_from_camera)
         images = render_images(seq.camera, boxes, rgb=rgb, depth_m=depth)
-        path = Path(f"{stem}_overlay_{f.name}.png")
+        path = frame_overlay_path(stem, f.name)
         written.append(write_png(path, images["overlay"]))
     return written
 

@@ -1,5 +1,5 @@
 """cuboidcli.frame: one frame's inputs (depth and/or RGB, intrinsics, depth scale) as a FrameInput,
-and a fit packaged as a FitResult with its settings and fit_info."""
+and a fit packaged as a FitResult with its settings and fit_info (cuboidcli.io.result.frame_result)."""
 
 from __future__ import annotations
 
@@ -16,11 +16,11 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.factories import DepthModelOptions, depth_estimator
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import FitInfo
-from cuboidcli.frame import load_frame, make_result, resolve_depth_scale, same_settings
+from cuboidcli.frame import load_frame, resolve_depth_scale
 from cuboidcli.geometry.gravity import given_gravity
 from cuboidcli.io.depth import InputError, Intrinsics
 from cuboidcli.io.photo import DEFAULT_FOV_DEG
-from cuboidcli.io.result import read_result, write_result
+from cuboidcli.io.result import frame_result, read_result, same_settings, write_result
 
 H, W = 48, 64
 SPEC = "200,210,31.5,23.5"
@@ -77,7 +77,7 @@ def test_without_intrinsics_a_default_field_of_view_is_assumed_and_the_user_told
     assert frame.camera == Camera(fx, fx, 319.5, 239.5, 640, 480)
     assert frame.meta["intrinsics_source"].startswith("default:")
     assert len(frame.notes) == 1 and frame.notes[0].startswith(
-        "no camera intrinsics (no -K, --preset or EXIF"
+        "no camera intrinsics (no -K, --camera or EXIF"
     )
     tum = load_frame(tmp_path / "full.png", preset="tum")  # a preset brings its depth unit: 1/5000 m
     assert tum.camera == Camera.preset("tum") and tum.notes == []
@@ -209,7 +209,7 @@ def test_unusable_inputs_are_one_line_input_errors(tmp_path, depth_png):
     cases = [
         (
             dict(depth_path=depth_png, preset="kinect9"),
-            "unknown --preset 'kinect9'; choose one of: nyu, tum, scannet",
+            "unknown --camera 'kinect9'; choose one of: nyu, tum, scannet",
         ),
         (dict(depth_path=None), r"give a depth map \(--depth D.png\) or an RGB image"),
         (dict(depth_path=tmp_path / "nope.png"), "depth file not found"),
@@ -245,13 +245,13 @@ def _info(**kwargs) -> FitInfo:
     return replace(info, **kwargs)
 
 
-def test_make_result_records_the_settings_and_what_happened():
+def test_frame_result_records_the_settings_and_what_happened():
     camera = Camera(200.0, 210.0, 31.5, 23.5, W, H)
     cuboids = [Cuboid([0.0, 0.0, 2.0], [0.5, 0.4, 0.3], np.eye(3))]
     config = FitConfig(max_cuboids=5, seed=3)
     meta = {"depth": "d.png", "width": W}
     info = _info()
-    result = make_result(camera, cuboids, info, config, meta, "numerical", "sequential", {"weights": "w.pt"})
+    result = frame_result(camera, cuboids, info, config, meta, "numerical", "sequential", {"weights": "w.pt"})
     assert result.camera == camera and result.cuboids == cuboids and result.input == meta
     assert result.timing_s == {"sample": 0.2, "total": 0.5}
     assert result.settings == {
@@ -277,7 +277,7 @@ def test_make_result_records_the_settings_and_what_happened():
     }
     # with a gravity estimate the result carries it and the camera pose it gives
     gravity = given_gravity([0.0, 2.0, 0.0])
-    levelled = make_result(camera, cuboids, _info(gravity=gravity), config, meta, "numerical", "sequential")
+    levelled = frame_result(camera, cuboids, _info(gravity=gravity), config, meta, "numerical", "sequential")
     assert levelled.extras["gravity"] == gravity.to_dict()
     assert np.allclose(levelled.extras["world_from_camera"], gravity.world_from_camera())
     assert "weights" not in levelled.settings
@@ -286,7 +286,7 @@ def test_make_result_records_the_settings_and_what_happened():
 def test_same_settings_compares_a_saved_result_with_a_configuration(tmp_path):
     camera = Camera(200.0, 210.0, 31.5, 23.5, W, H)
     config = FitConfig(max_cuboids=5)
-    result = make_result(camera, [], _info(), config, {}, "numerical", "sequential", {"weights": "w.pt"})
+    result = frame_result(camera, [], _info(), config, {}, "numerical", "sequential", {"weights": "w.pt"})
     write_result(tmp_path / "r.json", result)
     saved = read_result(tmp_path / "r.json").settings
     assert same_settings(saved, config, {"weights": "w.pt"})

@@ -1,5 +1,6 @@
 """`cuboids fit ROOM`: a point cloud, a mesh or a posed RGB-D sequence folder, fitted as one room in its
-own world frame. Parses what only rooms take, prints, and calls :meth:`cuboidcli.api.Fitter.fit_scene`."""
+own world frame, or every room of a folder. Parses what only rooms take, prints, and calls
+:meth:`cuboidcli.api.Fitter.fit_scene` (one room) or :mod:`cuboidcli.room_folder` (a folder)."""
 
 from __future__ import annotations
 
@@ -8,9 +9,52 @@ from pathlib import Path
 from rich.progress import TimeElapsedColumn
 from rich.table import Table
 
-from cuboidcli.cli.common import fail, out, progress_bar
-from cuboidcli.cli.scale_options import end_of_run, run_with_progress
+from cuboidcli.cli.common import fail, out, progress_bar, user_errors
+from cuboidcli.cli.fit_frames import Engine, check_extras, scene_kinds
+from cuboidcli.cli.options import DEFAULTS, fit_config
+from cuboidcli.cli.scale_options import end_of_run, ray_target, run_with_progress
 from cuboidcli.fitting.scene import VISIBILITY_CHOICES, SceneConfig
+
+
+def fit_room_command(o: dict) -> None:
+    """``cuboids fit`` with the options ``o`` for a room, or for a folder of rooms."""
+    from cuboidcli.folder import fitter_for
+    from cuboidcli.scene import is_scene_input
+
+    folder = not is_scene_input(o["image"])
+    ray_at = ray_target(o["workers"], o["ray"], o["ray_address"])
+    if (o["workers"] > 1 or ray_at is not None) and not folder:
+        fail("--workers and --ray fit the rooms of a folder; one room is fitted in one process")
+    if o["sampler"] == "learned":
+        fail("--sampler learned weighs the pixels of a depth map; a room is fitted with sequential")
+    config = fit_config(o)
+    # A room's own default number of cuboids stands unless --max-cuboids says otherwise.
+    max_cuboids = None if o["max_cuboids"] == DEFAULTS.max_cuboids else o["max_cuboids"]
+    scene = scene_config(max_cuboids, o["visibility"], o["up"], o["voxel"])
+    scenes = scene_kinds(o, ("html", "mjcf", "urdf", "usd"))
+    weights, onnx = (None if o[k] is None else str(o[k]) for k in ("weights", "onnx"))
+    with user_errors():
+        check_extras(scenes)
+        try:
+            fitter = fitter_for(config, weights, onnx)
+        except (ValueError, FileNotFoundError, ImportError) as e:
+            fail(str(e))
+        if folder:
+            from cuboidcli.room_folder import RoomJob
+
+            job = RoomJob(
+                config, scene, weights, onnx, o["unit"], o["every"], o["intrinsics"], o["depth_scale"],
+                o["glb"], o["ply"], o["with_points"], scenes,
+            )  # fmt: skip
+            engine = Engine(o["workers"], ray_at)
+            fit_rooms_folder(job, o["image"], o["output"], o["quiet"], engine, o["skip_existing"])
+            return
+        outputs = {k: o[k] for k in ("glb", "ply", "overlay", "with_points")}
+        fit_room(
+            fitter, o["image"], scene, o["output"], unit=o["unit"], every=o["every"],
+            intrinsics=o["intrinsics"], depth_scale=o["depth_scale"], outputs={**outputs, "scenes": scenes},
+            quiet=o["quiet"],
+        )  # fmt: skip
 
 
 def scene_config(
@@ -62,9 +106,10 @@ def fit_room(
     quiet: bool,
 ) -> None:
     """Fit one room and write its outputs; bad input is one line and exit 2 with nothing written."""
+    from cuboidcli.export.files import result_name
     from cuboidcli.io.depth import InputError
 
-    out_json = output or Path(f"{path.name if path.is_dir() else path.stem}_cuboids.json")
+    out_json = output or Path(result_name(path))
     if out_json.suffix.lower() != ".json":
         out_json = out_json / "cuboids.json" if out_json.is_dir() else out_json.with_suffix(".json")
     with progress_bar("{task.description}", TimeElapsedColumn(), transient=True, disable=quiet) as bar:
@@ -111,31 +156,28 @@ def fit_rooms_folder(
     Ray), one JSON each in ``output``; rooms whose outputs exist with the same settings are skipped; ends
     with a summary, exit 1 if any room failed."""
     from cuboidcli.cli.common import console
-    from cuboidcli.room_folder import fit_room_file, out_name, room_is_complete, rooms_in
+    from cuboidcli.export.files import results_folder
+    from cuboidcli.room_folder import fit_room_file, room_tasks, rooms_in
     from cuboidcli.scaleout import Outcome, Summary
 
-    rooms = rooms_in(folder)
-    out_dir = output or Path(f"{folder.name}_cuboids")
+    out_dir = output or results_folder(folder)
     if out_dir.suffix == ".json" or (out_dir.exists() and not out_dir.is_dir()):
         fail(f"-o {out_dir}: give a folder for the rooms of {folder}")
+    tasks, skipped = room_tasks(job, rooms_in(folder), out_dir, skip_existing)
     summary = Summary()
-    todo = []
-    for room in rooms:
-        if skip_existing and room_is_complete(out_dir / out_name(room), job):
-            summary.add(Outcome(room.name, "skipped"))
-        else:
-            todo.append(room)
+    for room in skipped:
+        summary.add(Outcome(room.name, "skipped"))
     if not quiet and summary.skipped:
         console.print(
             f"[cyan]note:[/] skipped {summary.skipped} rooms whose outputs exist in {out_dir}/",
             highlight=False,
         )
-    tasks = [(job, str(r), str(out_dir / out_name(r))) for r in todo]
 
     def describe(i: int, res: Outcome) -> str:
         n, seconds, points = res.value
         return f"{res.name}: {n} cuboids, {points} points, {seconds:.1f} s"
 
     label = f"fitting {len(tasks)} rooms on {engine.describe()}"
-    run_with_progress(fit_room_file, tasks, [r.name for r in todo], engine, summary, quiet, label, describe)
+    names = [Path(t[1]).name for t in tasks]
+    run_with_progress(fit_room_file, tasks, names, engine, summary, quiet, label, describe)
     end_of_run(summary, out_dir, quiet)

@@ -115,6 +115,9 @@ def main(
 from cuboidcli.cli import fit as _fit  # noqa: E402
 
 _fit.register(app)
+from cuboidcli.cli import demo as _demo  # noqa: E402
+
+_demo.register(app)
 from cuboidcli.cli import export as _export  # noqa: E402
 
 _export.register(app)

@@ -19,14 +19,14 @@ import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.evaluation.fits import fit_and_save, reusable_fit, saved_fit_path
 from cuboidcli.evaluation.metrics import AUC_CM, FrameMetrics, aggregate, frame_metrics, mean_std
-from cuboidcli.evaluation.outputs import weights_hashes
+from cuboidcli.evaluation.provenance import weights_hashes
 from cuboidcli.evaluation.shape import Reference, gravity_from_saved, synthetic_reference
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.geometry.gravity import Gravity
 from cuboidcli.io.dataset import read_splits
 from cuboidcli.io.depth import InputError
-from cuboidcli.io.result import read_result, write_result
+from cuboidcli.io.result import read_result
 from cuboidcli.scaleout import Outcome, Summary, failed, run_tasks
 
 
@@ -191,88 +191,6 @@ def check_estimator(config: FitConfig, weights_dir: Path | None = None) -> None:
         raise InputError(f"cannot run sampler {config.sampler!r} with solver {config.solver!r}: {e}") from e
 
 
-def _input_meta(frame: EvalFrame) -> dict:
-    """What a saved fit records about its input (the keys `cuboids fit` writes, so `cuboids export` works)."""
-    depth_path = getattr(frame, "depth_path", None)
-    rgb_path = getattr(frame, "rgb_path", None)
-    meta = {
-        "frame": frame.name,
-        "depth": None if depth_path is None else str(depth_path),
-        "image": None if rgb_path is None else str(rgb_path),
-        "width": frame.camera.width,
-        "height": frame.camera.height,
-    }
-    if hasattr(frame, "depth_scale"):
-        meta["depth_scale"] = frame.depth_scale
-    if hasattr(frame, "mat_path"):  # NYU labelled file
-        meta.update(mat=str(frame.mat_path), index=frame.index)
-    return meta
-
-
-def _estimated_depth(frame: EvalFrame, depth_model: Path | None) -> tuple[np.ndarray, float]:
-    """Depth from the frame's RGB image: (depth m (H, W), seconds the estimation took).
-
-    The estimator is built once per process (loading it is start-up, not fitting time)."""
-    from cuboidcli.depth import estimate_depth
-    from cuboidcli.factories import DepthModelOptions, depth_estimator
-
-    rgb = frame.rgb() if hasattr(frame, "rgb") else None
-    if rgb is None:
-        raise InputError(f"frame {frame.name}: --rgb needs an RGB image, and this frame has none")
-    timing: dict = {}
-    try:
-        opts = DepthModelOptions(None if depth_model is None else str(depth_model))
-        depth, _ = estimate_depth(depth_estimator(opts), rgb, frame.camera, timing)
-    except (ValueError, FileNotFoundError, ImportError) as e:
-        raise InputError(f"frame {frame.name}: {e}") from e
-    return depth, timing["depth"]
-
-
-def _fit_and_save(
-    frame: EvalFrame,
-    depth_m: np.ndarray,
-    config: FitConfig,
-    weights_dir: Path | None,
-    save_fits_dir: Path | None,
-    rgb: bool = False,
-    depth_model: Path | None = None,
-) -> tuple[list[Cuboid], dict, Gravity | None]:
-    """Run the estimator on one frame, optionally save its "cuboids/1" result: (cuboids, timing_s, the
-    gravity the fit used or estimated, ``FitInfo.gravity``).
-
-    With ``rgb`` the estimator fits the depth predicted from the frame's image (``depth_m`` is unused)
-    and ``timing_s["total"]`` includes the depth estimation (``timing_s["depth"]``).
-    """
-    from cuboidcli.fitting.pipeline import fit_depth
-    from cuboidcli.folder import fitter_for
-    from cuboidcli.frame import make_result
-
-    depth_s = None
-    if rgb:
-        depth_m, depth_s = _estimated_depth(frame, depth_model)
-    try:
-        # The estimator of this configuration is built once per process (any seed: it is the fit's).
-        fitter = fitter_for(replace(config, seed=0), None if weights_dir is None else str(weights_dir), None)
-        cuboids, info = fit_depth(depth_m, frame.camera, config, solver=fitter.solver, sampler=fitter.sampler)
-    except (ValueError, FileNotFoundError, ImportError) as e:  # bad settings, weights or input: one line
-        raise InputError(f"frame {frame.name}: {e}") from e
-    if depth_s is not None:
-        info.add_depth_time(depth_s)
-    if save_fits_dir is not None:
-        result = make_result(
-            frame.camera,
-            cuboids,
-            info,
-            config,
-            _input_meta(frame),
-            config.solver,
-            config.sampler,
-            {"weights": None if weights_dir is None else str(weights_dir)},
-        )
-        write_result(Path(save_fits_dir) / f"seed{config.seed}" / f"{frame.name}.json", result)
-    return cuboids, dict(info.timing_s), info.gravity
-
-
 def evaluate_frame(
     frame: EvalFrame,
     config: FitConfig,
@@ -310,7 +228,7 @@ def evaluate_frame(
         config = _scoring_config(config, saved.settings if isinstance(saved.settings, dict) else {})
         gravity = gravity_from_saved(saved.extras.get("gravity"))
     else:
-        cuboids, timing, gravity = _fit_and_save(
+        cuboids, timing, gravity = fit_and_save(
             frame, depth, config, weights_dir, save_fits_dir, rgb, depth_model
         )
     total = timing.get("total")
@@ -366,23 +284,6 @@ def _scoring_config(config: FitConfig, saved_settings: dict) -> FitConfig:
     return replace(config, **over) if over else config
 
 
-def saved_fit_path(save_fits_dir: Path, seed: int, name: str) -> Path:
-    """Where ``--save-fits`` keeps a frame's fit: <dir>/seed<seed>/<frame>.json."""
-    return Path(save_fits_dir) / f"seed{seed}" / f"{name}.json"
-
-
-def _reusable_fit(path: Path, config: FitConfig, weights_dir: Path | None) -> bool:
-    """A saved fit that a rerun may score instead of fitting: valid "cuboids/1", the same settings."""
-    from cuboidcli.frame import same_settings
-
-    try:
-        saved = read_result(path)
-    except (OSError, ValueError, KeyError, TypeError):
-        return False
-    extra = {"weights": None if weights_dir is None else str(weights_dir)}
-    return isinstance(saved.settings, dict) and same_settings(saved.settings, config, extra)
-
-
 def evaluate_task(
     frame: EvalFrame,
     config: FitConfig,
@@ -394,7 +295,7 @@ def evaluate_task(
     try:
         if settings.save_fits_dir is not None and settings.skip_existing:
             path = saved_fit_path(settings.save_fits_dir, config.seed, frame.name)
-            if _reusable_fit(path, config, settings.weights_dir):
+            if reusable_fit(path, config, settings.weights_dir):
                 m = evaluate_frame(frame, config, auc_cm, fits_dir=path.parent)
                 return Outcome(frame.name, "skipped", value=m)
         m = evaluate_frame(

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cuboidcli.export.files import SCENES, image_paths, output_paths, ply_paths, scene_path
 from cuboidcli.export.glb import OPENCV_TO_GLTF, gltf_points, node_matrix, node_name, write_glb
 from cuboidcli.export.obj import write_obj
 from cuboidcli.export.overlay import (
@@ -63,16 +64,6 @@ __all__ = [
 ]
 
 
-#: Scene files other tools open, by kind: the file name beside a result (``<stem>`` + this) that ``cuboids
-#: fit --KIND`` writes, and the module and function that write one (imported when used: each needs an
-#: optional extra).
-SCENES: dict[str, tuple[str, str, str]] = {
-    "html": (".html", "cuboidcli.export.html", "write_html"),
-    "mjcf": ("_mjcf.xml", "cuboidcli.export.mjcf", "write_mjcf"),
-    "urdf": (".urdf", "cuboidcli.export.mjcf", "write_urdf"),
-    "usd": (".usda", "cuboidcli.export.usd", "write_usd"),
-    "rrd": (".rrd", "cuboidcli.export.rerun", "write_rrd"),
-}
 #: The library each scene kind needs and the extra that installs it (None: nothing beyond cuboids).
 SCENE_EXTRAS: dict[str, tuple[str, str] | None] = {
     "html": ("plotly", "viz"),
@@ -108,11 +99,6 @@ def unlevelled_warning(result: FitResult, kinds) -> str | None:
     )
 
 
-def scene_path(stem: str | Path, kind: str) -> Path:
-    """Where ``cuboids fit --KIND`` writes scene ``kind`` of the result ``<stem>.json``."""
-    return Path(f"{stem}{SCENES[kind][0]}")
-
-
 def write_scene(
     kind: str, result: FitResult, path: str | Path, *, depth_m: np.ndarray | None = None, rgb=None
 ) -> Path:
@@ -126,32 +112,6 @@ def write_scene(
     _, module, function = SCENES[kind]
     writer = getattr(importlib.import_module(module), function)
     return Path(writer(result, path, depth_m=depth_m, rgb=rgb))
-
-
-def _sibling(path: Path, drop_suffix: str, name: str, ext: str) -> Path:
-    """``dir/<stem>_<name><ext>`` where a trailing ``_<drop_suffix>`` is removed from the stem first."""
-    stem = path.stem
-    if stem.endswith(f"_{drop_suffix}"):
-        stem = stem[: -len(drop_suffix) - 1]
-    return path.with_name(f"{stem}_{name}{ext}")
-
-
-def image_paths(overlay_path: str | Path) -> dict[str, Path]:
-    """Where the images that accompany an overlay go: ``x.png`` -> x_labels.png, x_labels_color.png,
-    x_panel.png (and ``x_overlay.png`` -> x_labels.png, ...)."""
-    p = Path(overlay_path)
-    return {
-        "overlay": p,
-        "labels": _sibling(p, "overlay", "labels", ".png"),
-        "labels_color": _sibling(p, "overlay", "labels_color", ".png"),
-        "panel": _sibling(p, "overlay", "panel", ".png"),
-    }
-
-
-def ply_paths(points_path: str | Path) -> dict[str, Path]:
-    """``x.ply`` holds the points and x_cuboids.ply the meshes (``x_points.ply`` -> x_cuboids.ply)."""
-    p = Path(points_path)
-    return {"points_ply": p, "cuboids_ply": _sibling(p, "points", "cuboids", ".ply")}
 
 
 #: Point clouds of larger frames are subsampled to at most about this many pixels (a 640x480 frame's): a
@@ -353,15 +313,16 @@ def write_outputs(
     base = Path(out_stem)
     if base.suffix.lower() == ".json":
         base = base.with_suffix("")
+    paths = output_paths(base, glb=glb, ply=ply, obj=obj, overlay=overlay, scenes=scenes)
     return export_result(
         result,
-        glb_path=f"{base}.glb" if glb else None,
-        ply_path=f"{base}_points.ply" if ply else None,
-        obj_path=f"{base}.obj" if obj else None,
-        overlay_path=f"{base}_overlay.png" if overlay else None,
+        glb_path=paths.get("glb"),
+        ply_path=paths.get("points_ply"),
+        obj_path=paths.get("obj"),
+        overlay_path=paths.get("overlay"),
         depth_m=depth_m,
         rgb=rgb,
         with_points=with_points,
         point_step=point_step,
-        scenes={kind: scene_path(base, kind) for kind in scenes},
+        scenes={kind: paths[kind] for kind in scenes},
     )

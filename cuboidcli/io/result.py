@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from cuboidcli import __version__
-from cuboidcli.camera import Camera
+from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.io.atomic import atomic_write_json
 from cuboidcli.io.jsonfile import read_json
@@ -61,6 +61,101 @@ class FitResult:
             extras={k: v for k, v in d.items() if k not in known},
             frame=d.get("frame", "opencv"),
         )
+
+
+def input_record(
+    depth_m: np.ndarray,
+    *,
+    depth: str | os.PathLike | None,
+    image: str | os.PathLike | None,
+    depth_source: str,
+    depth_scale: float | None,
+    intrinsics_source: str,
+) -> dict:
+    """The ``input`` entry of a frame's result: its files (None for arrays), where its depth came from (a
+    depth map, a network's estimate, an array), the size and the share of valid pixels of the depth map
+    (H, W) metres that was fitted, and where the intrinsics came from."""
+    h, w = depth_m.shape
+    return {
+        "depth": None if depth is None else str(depth),
+        "image": None if image is None else str(image),
+        "depth_source": depth_source,
+        "depth_scale": depth_scale,
+        "width": w,
+        "height": h,
+        "valid_fraction": round(float(valid_depth(depth_m).mean()), 6),
+        "intrinsics_source": intrinsics_source,
+    }
+
+
+def frame_result(
+    camera: Camera,
+    cuboids: list[Cuboid],
+    info,
+    config,
+    input_meta: dict,
+    solver_name: str,
+    sampler_name: str,
+    extra_settings: dict | None = None,
+) -> FitResult:
+    """The "cuboids/1" result of a fitted frame (camera frame): ``info`` is the fit's
+    :class:`~cuboidcli.fitting.pipeline.FitInfo`, ``config`` its
+    :class:`~cuboidcli.fitting.config.FitConfig`; the settings are the config's fields, the Theta used, the
+    solver's and sampler's names and ``extra_settings`` (the weights used); ``input_meta`` is the ``input``
+    entry (:func:`input_record`)."""
+    settings = {
+        **config.to_dict(),
+        "theta_used": info.theta,
+        "solver_name": solver_name,
+        "sampler_name": sampler_name,
+        **(extra_settings or {}),
+    }
+    fit_info = {
+        "n_points": info.n_points,
+        "grid_step": info.grid_step,
+        "iterations": info.iterations,
+        "batches": info.batches,
+        "stop_reason": info.stop_reason,
+        "rejected_gain": info.rejected_gain,
+        "gains": info.gains,
+        "align": info.align,
+        "aligned": info.aligned,
+        "warnings": info.warnings,
+    }
+    extras = {"fit_info": fit_info}
+    if info.gravity is not None:
+        extras["gravity"] = info.gravity.to_dict()
+        extras["world_from_camera"] = info.gravity.world_from_camera().tolist()
+    return FitResult(
+        camera=camera,
+        cuboids=cuboids,
+        settings=settings,
+        timing_s=info.timing_s,
+        input=input_meta,
+        extras=extras,
+    )
+
+
+def same_settings(saved: dict, config, extra_settings: dict | None = None) -> bool:
+    """Whether a saved result's ``settings`` (as :func:`frame_result` writes them) are those of ``config``
+    (a FitConfig) and ``extra_settings`` (the weights used): a rerun may then keep that result instead of
+    fitting again."""
+    import json
+
+    wanted = {**json.loads(json.dumps(config.to_dict())), **(extra_settings or {})}
+    return all(saved.get(k) == v for k, v in wanted.items())
+
+
+def saved_settings(out_json: str | os.PathLike, outputs: list[Path]) -> dict | None:
+    """The ``settings`` of a finished result: None unless every file of ``outputs`` exists and ``out_json``
+    is a valid "cuboids/1" result with settings (a rerun fits it again then)."""
+    if not all(Path(p).is_file() for p in outputs):
+        return None
+    try:
+        saved = read_result(out_json)
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+    return saved.settings if isinstance(saved.settings, dict) else None
 
 
 def _is_number(v) -> bool:

@@ -437,3 +437,24 @@ def test_rerun_streams_a_fit_to_a_running_viewer(tmp_path, room_png, rerun_cli):
     names = [c["kind"] + f"_{c['id']:02d}" for c in json.loads(out.read_text())["cuboids"]]
     printed = subprocess.run([rerun_cli, "rrd", "print", "-vvv", str(saved)], capture_output=True, text=True)
     assert all(name in printed.stdout for name in names)
+
+
+def test_the_old_preset_spelling_still_works_and_warns(tmp_path, room_png):
+    """--camera is the camera preset; --preset, its old spelling, still works (hidden from --help) with a
+    one-line warning and writes the same JSON. Giving both is refused."""
+    new, old = tmp_path / "camera.json", tmp_path / "preset.json"
+    r = run("fit", "--depth", room_png, "--camera", "nyu", "-o", new, *FAST, "--seed", "2", "-q")
+    assert r.exit_code == 0, r.output
+    assert "deprecated" not in r.output
+    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", old, *FAST, "--seed", "2", "-q")
+    assert r.exit_code == 0, r.output
+    assert "warning: --preset is deprecated; use --camera" in " ".join(r.output.split())
+    a, b = (json.loads(p.read_text()) for p in (new, old))
+    for doc in (a, b):
+        doc.pop("timing_s")
+    assert a == b and a["input"]["intrinsics_source"] == "preset:nyu"
+    r = run("fit", "--depth", room_png, "--preset", "nyu", "--camera", "nyu", "-o", old, *FAST)
+    assert r.exit_code == 2 and "give only --camera" in r.output
+    rows = [line for line in run("fit", "--help").output.splitlines() if "│ --" in line]
+    options = [row.strip("│ ").split()[0] for row in rows]
+    assert "--camera" in options and "--preset" not in options
