@@ -41,11 +41,11 @@ def write_frames(folder: Path, n: int) -> list[Path]:
 
 
 def run_engine(label: str, files: list[Path], out: Path, config, workers: int, ray: str | None) -> dict:
-    from cuboidcli.folder import FolderJob, fit_file
+    from cuboidcli.folder import FrameJob, fit_file
     from cuboidcli.scaleout import run_tasks
 
     out.mkdir(parents=True, exist_ok=True)
-    job = FolderJob(config=config, preset="nyu")
+    job = FrameJob(config=config, preset="nyu")
     tasks = [(job, str(f), str(out / f"{f.stem}_cuboids.json")) for f in files]
     stamps: list[float] = []
     t0 = time.perf_counter()
@@ -86,8 +86,7 @@ def main() -> None:
     ap.add_argument("--json", type=Path, default=None, help="also write the rows as JSON")
     args = ap.parse_args()
 
-    from cuboidcli.api import resolve_device
-    from cuboidcli.fitting.config import FitConfig
+    from cuboidcli.fitting.config import FitConfig, resolve_device
 
     config = FitConfig(device=resolve_device("cpu"))
     if args.hypotheses is not None:

@@ -32,7 +32,7 @@ from cuboidcli.fitting.config import FitConfig, resolve_device
 from cuboidcli.fitting.parts import SAMPLERS as SAMPLERS  # the names the estimator accepts, registered
 from cuboidcli.fitting.parts import SOLVERS as SOLVERS  # in cuboidcli.fitting.parts
 from cuboidcli.io.depth import read_camera as read_camera  # cb.read_camera
-from cuboidcli.io.result import FitResult
+from cuboidcli.io.result import FitResult, frame_result, input_record
 
 #: FitConfig fields a caller may set by keyword (``cb.fit(..., hypotheses=1024)``); device is separate.
 SETTINGS = tuple(f.name for f in dataclasses.fields(FitConfig) if f.name != "device")
@@ -223,16 +223,9 @@ class Fitter:
         h, w = depth_m.shape
         camera = camera.for_image(w, h)
         warn_all(check_inputs(depth_m, camera, None if rgb is None else np.shape(rgb)))
-        meta = {
-            "depth": None,
-            "image": None,
-            "depth_source": "array",
-            "depth_scale": None,
-            "width": w,
-            "height": h,
-            "valid_fraction": round(float(valid_depth(depth_m).mean()), 6),
-            "intrinsics_source": "api",
-        }
+        meta = input_record(
+            depth_m, depth=None, image=None, depth_source="array", depth_scale=None, intrinsics_source="api"
+        )
         return self._fit(depth_m, camera, rgb, meta, None, seed, progress)
 
     def fit_photo(
@@ -270,7 +263,6 @@ class Fitter:
 
     def _fit(self, depth_m, camera, rgb, meta, depth_seconds, seed, progress) -> Result:
         from cuboidcli.fitting.pipeline import fit_depth
-        from cuboidcli.frame import make_result
 
         config = self.config if seed is None else replace(self.config, seed=int(seed))
         cuboids, info = fit_depth(
@@ -278,7 +270,7 @@ class Fitter:
         )
         if depth_seconds is not None:
             info.add_depth_time(depth_seconds)
-        record = make_result(
+        record = frame_result(
             camera, cuboids, info, config, meta, self.solver.name, self.sampler.name, self._files()
         )
         return Result(record, info, depth_m, rgb)

@@ -90,11 +90,6 @@ class Camera:
     def with_size(self, width: int, height: int) -> Camera:
         return replace(self, width=int(width), height=int(height))
 
-    def camera(self, width: int, height: int) -> Camera:
-        """:meth:`with_size`, as the intrinsics of :func:`cuboidcli.io.depth.Intrinsics` spelled it; kept
-        while :mod:`cuboidcli.frame` calls it."""
-        return self.with_size(width, height)
-
     def scaled(self, sx: float, sy: float | None = None) -> Camera:
         """Intrinsics of the image resized by factors (sx, sy), pixel-centre convention."""
         sy = sx if sy is None else sy

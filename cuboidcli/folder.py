@@ -19,7 +19,7 @@ from cuboidcli.fitting.config import FitConfig
 from cuboidcli.io.result import same_settings, saved_settings
 from cuboidcli.scaleout import Outcome, failed
 
-__all__ = ["FolderJob", "FolderRecording", "FrameJob", "fit_file", "fitter_for", "folder_tasks"]
+__all__ = ["FolderRecording", "FrameJob", "fit_file", "fitter_for", "folder_tasks"]
 
 
 @dataclass(frozen=True)
@@ -99,10 +99,6 @@ class FrameJob:
         if self.intrinsics is None and cameras.is_file():
             return replace(self, intrinsics=str(cameras))
         return self
-
-
-#: The name scripts and the README use for a folder's job.
-FolderJob = FrameJob
 
 
 @lru_cache(maxsize=4)

@@ -15,7 +15,6 @@ from cuboidcli.camera import PRESETS, Camera
 from cuboidcli.factories import DepthModelOptions, depth_estimator
 from cuboidcli.io.depth import (
     InputError,
-    Intrinsics,
     check_inputs,
     intrinsics_for_size,
     parse_intrinsics,
@@ -23,10 +22,9 @@ from cuboidcli.io.depth import (
     read_rgb,
 )
 from cuboidcli.io.photo import DEFAULT_FOV_DEG, centred_intrinsics, default_camera, read_photo
-from cuboidcli.io.result import frame_result, input_record
+from cuboidcli.io.result import input_record
 
 #: The packaging of a fit, named as :mod:`cuboidcli.api` imports it from here.
-make_result = frame_result
 
 
 @dataclass
@@ -41,7 +39,7 @@ class FrameInput:
     """Seconds the depth estimation from RGB took (None: the depth was given)."""
 
 
-def resolve_depth_scale(depth_scale: float | None, intr: Intrinsics, preset: str | None) -> float:
+def resolve_depth_scale(depth_scale: float | None, intr: Camera, preset: str | None) -> float:
     """Explicit option > intrinsics file > preset > millimetres."""
     if depth_scale is not None:
         if depth_scale <= 0:
@@ -96,7 +94,7 @@ def load_frame(
         intr = default_camera(w, h)
         notes.append(_guessed(intr))
     notes += check_inputs(depth, intr, None if rgb is None else rgb.shape)
-    camera = intr.camera(w, h)
+    camera = intr.with_size(w, h)
     meta = input_record(
         depth,
         depth=depth_path,
@@ -111,17 +109,17 @@ def load_frame(
 
 
 #: Stands in for "no intrinsics given" where only their depth scale is asked for.
-_NO_INTRINSICS = Intrinsics(0.0, 0.0, 0.0, 0.0)
+_NO_INTRINSICS = Camera(0.0, 0.0, 0.0, 0.0)
 
 
-def _guessed(intr: Intrinsics) -> str:
+def _guessed(intr: Camera) -> str:
     return (
         f"no camera intrinsics (no -K, --camera or EXIF focal length): assuming a {DEFAULT_FOV_DEG:g} degree "
         f"field of view across the long side (fx = {intr.fx:.1f} px); pass -K fx,fy,cx,cy for exact boxes"
     )
 
 
-def _registered(photo, image_path, depth: np.ndarray | None) -> tuple[np.ndarray, Intrinsics | None]:
+def _registered(photo, image_path, depth: np.ndarray | None) -> tuple[np.ndarray, Camera | None]:
     """The photo's pixels and EXIF intrinsics as the frame uses them: upright; beside a depth map, the
     orientation whose size matches the depth map (a depth map is registered to the stored pixels when the
     camera wrote its orientation only as a tag)."""
@@ -136,12 +134,12 @@ def _registered(photo, image_path, depth: np.ndarray | None) -> tuple[np.ndarray
 
 def _estimate_depth(
     rgb: np.ndarray,
-    intr: Intrinsics | None,
+    intr: Camera | None,
     depth_scale: float,
     opts: DepthModelOptions,
     timing: dict,
     notes: list[str],
-) -> tuple[np.ndarray, str, Intrinsics]:
+) -> tuple[np.ndarray, str, Camera]:
     """Depth from the image: (depth_m, description, the intrinsics used). Without intrinsics a model that
     predicts the focal length supplies them; otherwise the default field of view is assumed."""
     from cuboidcli.depth import estimate_depth
@@ -161,13 +159,13 @@ def _estimate_depth(
         if intr is None:
             intr = default_camera(w, h)
             notes.append(_guessed(intr))
-        depth, source = estimate_depth(estimator, rgb, intr.camera(w, h), timing)
+        depth, source = estimate_depth(estimator, rgb, intr.with_size(w, h), timing)
         return _edges_dropped(depth, intr, opts, source, timing), source, intr
     except (ValueError, FileNotFoundError, ImportError) as e:
         raise InputError(str(e)) from e
 
 
-def _edges_dropped(depth: np.ndarray, intr: Intrinsics, opts: DepthModelOptions, source: str, timing: dict):
+def _edges_dropped(depth: np.ndarray, intr: Camera, opts: DepthModelOptions, source: str, timing: dict):
     """The estimate without its pixels on depth discontinuities when ``opts.drop_edges`` asks for it (the
     time counts as part of the depth stage); ``timing["edges_dropped"]`` gets the share of pixels left out."""
     if not opts.drop_edges:

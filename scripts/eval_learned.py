@@ -220,7 +220,7 @@ def write_outputs(out: Path, command: str, payload: dict, tables: str) -> None:
 
 def main(argv: list[str] | None = None) -> None:
     args = parse_args(argv)
-    from cuboidcli.evaluation.outputs import machine_info
+    from cuboidcli.evaluation.provenance import machine_info
     from cuboidcli.evaluation.runner import EvalSettings, evaluate
     from cuboidcli.fitting.config import FitConfig
     from cuboidcli.io.depth import InputError

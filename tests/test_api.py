@@ -141,7 +141,7 @@ def test_cli_and_api_write_the_same_cuboids(tmp_path, room_png, room_depth, nyu_
     from cuboidcli.cli.main import app
 
     out = tmp_path / "cli.json"
-    args = ["fit", "--depth", str(room_png), "--preset", "nyu", "-o", str(out), "--hypotheses", "256"]
+    args = ["fit", "--depth", str(room_png), "--camera", "nyu", "-o", str(out), "--hypotheses", "256"]
     r = CliRunner().invoke(app, [*args, "--max-cuboids", "5", "--device", "cpu", "-q"])
     assert r.exit_code == 0, r.output
     depth = cb.read_depth(room_png)

@@ -15,7 +15,7 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.raycast import render_depth
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.folder import FolderJob, FrameJob, fit_file, folder_tasks
+from cuboidcli.folder import FrameJob, fit_file, folder_tasks
 
 CAM = Camera.preset("nyu").scaled(0.125)  # 80x60
 K = f"{CAM.fx},{CAM.fy},{CAM.cx},{CAM.cy}"
@@ -45,7 +45,6 @@ def test_one_frame_and_the_folder_task_give_the_same_result(frames, tmp_path):
     one, task = (json.loads((tmp_path / n).read_text()) for n in ("one.json", "task.json"))
     assert one["cuboids"] == task["cuboids"] and one["settings"] == task["settings"]
     assert job.outputs(tmp_path / "task.json") == [tmp_path / "task.glb", tmp_path / "task.json"]
-    assert FolderJob is FrameJob
 
 
 def test_folder_tasks_skip_complete_frames_of_the_same_settings(frames, tmp_path):

@@ -18,7 +18,7 @@ from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import FitInfo
 from cuboidcli.frame import load_frame, resolve_depth_scale
 from cuboidcli.geometry.gravity import given_gravity
-from cuboidcli.io.depth import InputError, Intrinsics
+from cuboidcli.io.depth import InputError
 from cuboidcli.io.photo import DEFAULT_FOV_DEG
 from cuboidcli.io.result import frame_result, read_result, same_settings, write_result
 
@@ -110,7 +110,7 @@ def test_a_preset_is_scaled_to_an_image_of_its_aspect_ratio_and_refused_for_anot
     cv2.imwrite(str(tmp_path / "square.png"), square)
     with pytest.raises(
         InputError,
-        match=r"--preset nyu is for 640x480 images \(aspect 1.333\) but this "
+        match=r"--camera nyu is for 640x480 images \(aspect 1.333\) but this "
         r"image is 1000x1000 \(aspect 1.000\); give its intrinsics with -K fx,fy,cx,cy",
     ):
         load_frame(tmp_path / "square.png", preset="nyu")
@@ -126,8 +126,8 @@ def _small(tmp_path):
 
 
 def test_depth_scale_option_beats_the_intrinsics_file_which_beats_the_preset():
-    with_scale = Intrinsics(1.0, 1.0, 0.0, 0.0, depth_scale=0.0002)
-    without = Intrinsics(1.0, 1.0, 0.0, 0.0)
+    with_scale = Camera(1.0, 1.0, 0.0, 0.0, depth_scale=0.0002)
+    without = Camera(1.0, 1.0, 0.0, 0.0)
     assert resolve_depth_scale(0.0005, with_scale, "tum") == 0.0005
     assert resolve_depth_scale(None, with_scale, "scannet") == 0.0002
     assert resolve_depth_scale(None, without, "tum") == pytest.approx(0.0002)
@@ -294,6 +294,10 @@ def test_same_settings_compares_a_saved_result_with_a_configuration(tmp_path):
     assert not same_settings(saved, replace(config, max_cuboids=6), {"weights": "w.pt"})
     assert not same_settings(saved, replace(config, local_radii_m=(0.2, 0.4)), {"weights": "w.pt"})
     assert not same_settings(saved, config, {"weights": "other.pt"})
+    # A result written before a setting existed was fitted with that setting's default.
+    older = {k: v for k, v in saved.items() if k != "refine_iters"}
+    assert same_settings(older, config)
+    assert not same_settings(older, replace(config, refine_iters=3))
 
 
 def test_dropping_depth_edges_leaves_out_the_estimates_pixels_on_discontinuities():

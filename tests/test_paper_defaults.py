@@ -12,7 +12,7 @@ from cuboidcli.evaluation.auc import AUC_CM
 from cuboidcli.evaluation.presets import resolve
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.kernels import inlier_fn, occlusion_fn
-from cuboidcli.learn.finetune import FinetuneConfig
+from cuboidcli.learn.finetune_config import FinetuneConfig
 from cuboidcli.learn.sampler_config import SamplerTrainConfig
 from cuboidcli.nets.sampler import SamplerNetConfig
 

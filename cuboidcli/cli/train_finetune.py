@@ -12,7 +12,7 @@ import typer
 
 from cuboidcli.cli import train_options as opt
 from cuboidcli.cli.common import check_training_paths, console, fail, resolve_device, training_run
-from cuboidcli.learn.finetune import FinetuneConfig
+from cuboidcli.learn.finetune_config import FinetuneConfig
 
 #: The output folder by default.
 OUTPUT = "runs/finetune"

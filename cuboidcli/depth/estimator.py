@@ -31,7 +31,6 @@ import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.depth.image import check_rgb, resize
-from cuboidcli.depth.onnx import OnnxDepthEstimator as OnnxDepthEstimator  # re-exported for the factories
 from cuboidcli.nets.depth import DepthNet, net_from_checkpoint
 
 

@@ -49,64 +49,24 @@ import numpy as np
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.aggregate import (
-    aggregate,
-    gravity_summary,
-    mean_std,
-    parsimony_curve,
-    shape_summary,
-)
 from cuboidcli.evaluation.auc import (
     AUC_CM,
-    RECALL_CURVE_CM,
     AucStats,
-    auc,
     auc_key,
-    pooled_recall_pct,
     recall_counts,
 )
 from cuboidcli.evaluation.coverage import fill_convex, projected_hull
-from cuboidcli.evaluation.iou import BOX_IOU, IOU_THRESHOLDS, box_rates, gt_match_counts, match_rates
+from cuboidcli.evaluation.iou import BOX_IOU, box_rates, gt_match_counts, match_rates
 from cuboidcli.evaluation.oa import oa_distances, oa_sq_prefix_distances
 from cuboidcli.evaluation.object_recall import (
-    OBJECT_EXPLAIN_PCT,
-    OBJECT_MIN_PCT,
     ObjectCounts,
     object_counts,
     object_rates,
 )
 from cuboidcli.evaluation.shape import Reference, ShapeMetrics, shape_metrics
+from cuboidcli.evaluation.shape_summary import shape_summary
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.gravity import Gravity
-
-#: The metrics' public names, those of the modules each concept lives in included, so that
-#: ``from cuboidcli.evaluation.metrics import ...`` reaches all of them.
-__all__ = [
-    "AUC_CM",
-    "BOX_IOU",
-    "IOU_THRESHOLDS",
-    "OBJECT_EXPLAIN_PCT",
-    "OBJECT_MIN_PCT",
-    "RECALL_CURVE_CM",
-    "AucStats",
-    "FrameMetrics",
-    "ObjectCounts",
-    "aggregate",
-    "auc",
-    "auc_key",
-    "box_rates",
-    "frame_metrics",
-    "gravity_summary",
-    "gt_match_counts",
-    "match_rates",
-    "mean_std",
-    "object_counts",
-    "object_rates",
-    "parsimony_curve",
-    "pooled_recall_pct",
-    "recall_counts",
-    "shape_summary",
-]
 
 
 @dataclass

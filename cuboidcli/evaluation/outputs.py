@@ -13,13 +13,12 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from cuboidcli import __version__
-from cuboidcli.evaluation.provenance import machine_info, weights_hashes
+from cuboidcli.evaluation.provenance import machine_info
 from cuboidcli.io.atomic import atomic_write_json, atomic_write_text
 
 if TYPE_CHECKING:
     from cuboidcli.evaluation.runner import EvalReport
 
-__all__ = ["cuboid_rows", "frame_rows", "machine_info", "weights_hashes", "write_outputs"]
 
 
 def _clean(obj):

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
 
-from cuboidcli.api import SAMPLERS, SOLVERS
 from cuboidcli.fitting.config import OUTDOOR, FitConfig
+from cuboidcli.fitting.parts import SAMPLERS, SOLVERS
 from cuboidcli.io.depth import InputError
 
 #: The samplers and solvers an evaluation runs: no ``local`` (sequential with every set localised), no

@@ -19,8 +19,10 @@ import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.evaluation.aggregate import aggregate, mean_std
+from cuboidcli.evaluation.auc import AUC_CM
 from cuboidcli.evaluation.fits import fit_and_save, reusable_fit, saved_fit_path
-from cuboidcli.evaluation.metrics import AUC_CM, FrameMetrics, aggregate, frame_metrics, mean_std
+from cuboidcli.evaluation.metrics import FrameMetrics, frame_metrics
 from cuboidcli.evaluation.provenance import weights_hashes
 from cuboidcli.evaluation.shape import Reference, gravity_from_saved, synthetic_reference
 from cuboidcli.fitting.config import FitConfig

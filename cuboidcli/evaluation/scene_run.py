@@ -215,7 +215,7 @@ def write_scene_report(path: str | os.PathLike, report: SceneEvalReport, provena
     """Write ``report`` and ``provenance`` (version, command, settings, ...) to ``path`` as JSON
     atomically (schema ``cuboids-scenes/1``); NaN (a ratio of nothing) and inf are written as null."""
     from cuboidcli import __version__
-    from cuboidcli.evaluation.outputs import machine_info
+    from cuboidcli.evaluation.provenance import machine_info
     from cuboidcli.io.atomic import atomic_write_json
 
     doc = {"schema": "cuboids-scenes/1", "version": __version__, **provenance, **report.to_dict()}

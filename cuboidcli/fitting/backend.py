@@ -32,7 +32,6 @@ from torch import Tensor
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
 from cuboidcli.fitting.scoring import ScoreParams, gains_torch, values_torch
-from cuboidcli.fitting.scoring import gains_cpu as gains_cpu  # callers outside fitting take it from here
 from cuboidcli.geometry.backends import resolve_backend
 
 #: Exact selection: candidates nominated on a random eighth of the points whose best exact gain becomes

@@ -16,11 +16,7 @@ import numpy as np
 import torch
 
 from cuboidcli.fitting.box import ROBUST_PERCENTILES, Box, Scored, StepContext
-from cuboidcli.fitting.box import gain_of as gain_of  # gain_of, thin_axis, values_one, is_room_slab:
-from cuboidcli.fitting.box import thin_axis as thin_axis  # evaluation/ and learn/ import them from here
-from cuboidcli.fitting.box import values_one as values_one
 from cuboidcli.fitting.refit import refit_box
-from cuboidcli.fitting.shell import is_room_slab as is_room_slab
 
 #: A slab turned to the tightest rectangle around its points (:func:`square_slab`) is kept when it gains
 #: this share of what the solver's in-plane angle gains, both grown.

@@ -28,21 +28,6 @@ class InputWarning(UserWarning):
     """Suspicious but usable input."""
 
 
-def Intrinsics(  # noqa: N802 - the name of the type it makes, for its callers
-    fx: float,
-    fy: float,
-    cx: float,
-    cy: float,
-    width: int | None = None,
-    height: int | None = None,
-    depth_scale: float | None = None,
-    source: str = "",
-) -> Camera:
-    """Intrinsics as given, as a :class:`~cuboidcli.camera.Camera` (an unknown size None is 0 there); the
-    readers here return Cameras. Kept for :mod:`cuboidcli.frame`, which still makes them by this name."""
-    return Camera(fx, fy, cx, cy, int(width or 0), int(height or 0), depth_scale, source)
-
-
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split()) or type(exc).__name__
 
@@ -248,7 +233,7 @@ def intrinsics_for_size(intr: Camera, width: int, height: int, preset: str | Non
     aspect, wanted = width / height, intr.width / intr.height
     if abs(aspect - wanted) > ASPECT_TOLERANCE * wanted:
         raise InputError(
-            f"--preset {preset} is for {intr.width}x{intr.height} images (aspect {wanted:.3f}) but this "
+            f"--camera {preset} is for {intr.width}x{intr.height} images (aspect {wanted:.3f}) but this "
             f"image is {width}x{height} (aspect {aspect:.3f}); give its intrinsics with -K fx,fy,cx,cy"
         )
     scaled = intr.scaled(width / intr.width, height / intr.height)
@@ -273,7 +258,7 @@ def check_inputs(depth_m: np.ndarray, intr: Camera, rgb_shape: tuple[int, ...] |
     if med > 100.0:
         raise InputError(
             f"median depth is {med:.0f} m: the depth unit looks wrong (millimetres read as metres?); "
-            "pass --depth-scale 0.001 for millimetre PNGs or --preset tum for 1/5000 m"
+            "pass --depth-scale 0.001 for millimetre PNGs or --camera tum for 1/5000 m"
         )
     if med < 0.05:
         raise InputError(

@@ -139,11 +139,13 @@ def frame_result(
 def same_settings(saved: dict, config, extra_settings: dict | None = None) -> bool:
     """Whether a saved result's ``settings`` (as :func:`frame_result` writes them) are those of ``config``
     (a FitConfig) and ``extra_settings`` (the weights used): a rerun may then keep that result instead of
-    fitting again."""
+    fitting again. A setting the saved result lacks counts as its default: a setting is only added with
+    the default that reproduces what the code did before it existed."""
     import json
 
     wanted = {**json.loads(json.dumps(config.to_dict())), **(extra_settings or {})}
-    return all(saved.get(k) == v for k, v in wanted.items())
+    defaults = json.loads(json.dumps(type(config)().to_dict()))
+    return all(saved.get(k, defaults.get(k)) == v for k, v in wanted.items())
 
 
 def saved_settings(out_json: str | os.PathLike, outputs: list[Path]) -> dict | None:

@@ -69,8 +69,8 @@ from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext
 from cuboidcli.learn.draws import draw_generator, draw_states
 from cuboidcli.learn.finetune_config import FinetuneConfig
-from cuboidcli.learn.finetune_data import Scene, has_rgb, load_scene
-from cuboidcli.learn.finetune_loss import Nets, backproject_grid, load_nets, predicted_grid, scene_loss
+from cuboidcli.learn.finetune_data import has_rgb, load_scene
+from cuboidcli.learn.finetune_loss import Nets, load_nets, scene_loss
 from cuboidcli.learn.job import StepResult, TrainingJob, Validation
 from cuboidcli.learn.run_config import RunConfig
 from cuboidcli.learn.sampler_data import dataset_splits, epoch_order
@@ -79,26 +79,6 @@ from cuboidcli.learn.training_state import resumed
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.sampling.learned import LearnedSampler
 from cuboidcli.weights import FILES
-
-#: Importable from here too: the frames (:mod:`cuboidcli.learn.finetune_data`) and the networks and loss
-#: (:mod:`cuboidcli.learn.finetune_loss`).
-__all__ = [
-    "DEPTH_NAME",
-    "RESUME_OVERRIDES",
-    "SAMPLER_NAME",
-    "SOLVER_NAME",
-    "FinetuneConfig",
-    "FinetuneJob",
-    "Nets",
-    "Scene",
-    "backproject_grid",
-    "finetune",
-    "load_nets",
-    "load_scene",
-    "predicted_grid",
-    "scene_loss",
-    "validate",
-]
 
 STATE_KIND = "finetune-state"
 #: The files it writes, in the layout ``--weights DIR`` reads.

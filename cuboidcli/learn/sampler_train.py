@@ -56,10 +56,10 @@ from cuboidcli.fitting.prepare import PreparedPoints
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext
-from cuboidcli.learn.draws import EPOCH_SEED_STRIDE, RANK_SEED_STRIDE, draw_generator, draw_seed, draw_states
+from cuboidcli.learn.draws import draw_generator, draw_states
 from cuboidcli.learn.job import OneNetJob, StepResult, Validation
 from cuboidcli.learn.run_config import RunConfig
-from cuboidcli.learn.sampler_config import SamplerSchedule, SamplerTrainConfig
+from cuboidcli.learn.sampler_config import SamplerTrainConfig
 from cuboidcli.learn.sampler_data import dataset_splits, depth_statistics, epoch_order, prepare_scenes
 from cuboidcli.learn.sampler_loss import LossParams, instance_loss
 from cuboidcli.learn.trainer import Run, batched, run_job, shared_batch_step
@@ -71,23 +71,6 @@ from cuboidcli.sampling.learned import LearnedSampler, grid_inputs
 from cuboidcli.solvers.base import SizeBounds
 from cuboidcli.solvers.numerical import NumericalSolver
 from cuboidcli.weights import FILES
-
-#: Importable from here too: the configs (:mod:`cuboidcli.learn.sampler_config`) and the draw generators
-#: (:mod:`cuboidcli.learn.draws`) fine-tuning shares with this trainer.
-__all__ = [
-    "EPOCH_SEED_STRIDE",
-    "RANK_SEED_STRIDE",
-    "STATE_KIND",
-    "SamplerJob",
-    "SamplerSchedule",
-    "SamplerTrainConfig",
-    "draw_generator",
-    "draw_seed",
-    "draw_states",
-    "train_sampler",
-    "train_scene",
-    "validate",
-]
 
 STATE_KIND = "sampler-train-state"
 

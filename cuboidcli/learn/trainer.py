@@ -46,30 +46,10 @@ import torch
 
 from cuboidcli.io.atomic import atomic_torch_save, atomic_write_json
 from cuboidcli.learn.distributed import DistContext, distributed, launched_world_size
-from cuboidcli.learn.job import OneNetJob, StepResult, TrainingJob, Validation
-from cuboidcli.learn.run_config import RunConfig, RunFields, WarmupCosine
-from cuboidcli.learn.training_state import LAST, LEGACY_STATE_KEYS, params_sha256, read_state, resumed
+from cuboidcli.learn.job import StepResult, TrainingJob
+from cuboidcli.learn.run_config import RunConfig
+from cuboidcli.learn.training_state import LAST, params_sha256, read_state
 from cuboidcli.nets.checkpoint import parameter_count
-
-#: The names the trainers import from here, defined in the modules of the run's parts.
-__all__ = [
-    "LAST",
-    "LEGACY_STATE_KEYS",
-    "OneNetJob",
-    "Run",
-    "RunConfig",
-    "RunFields",
-    "StepResult",
-    "TrainingJob",
-    "Validation",
-    "WarmupCosine",
-    "batched",
-    "params_sha256",
-    "read_state",
-    "resumed",
-    "run_job",
-    "shared_batch_step",
-]
 
 #: The loop's clock (tests replace it).
 _clock = time.perf_counter

@@ -22,7 +22,7 @@ def run(*args):
 
 def test_fit_writes_schema_json(tmp_path, room_png):
     out = tmp_path / "out" / "room.json"
-    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, *FAST, "--seed", "3")
+    r = run("fit", "--depth", room_png, "--camera", "nyu", "-o", out, *FAST, "--seed", "3")
     assert r.exit_code == 0, r.output
     d = json.loads(out.read_text())
     assert d["schema"] == "cuboids/1" and d["frame"] == "opencv"
@@ -44,7 +44,7 @@ def test_fit_writes_schema_json(tmp_path, room_png):
     assert "cuboids" in r.output and "wrote" in r.output
     # deterministic with --seed
     out2 = tmp_path / "again.json"
-    run("fit", "--depth", room_png, "--preset", "nyu", "-o", out2, *FAST, "--seed", "3")
+    run("fit", "--depth", room_png, "--camera", "nyu", "-o", out2, *FAST, "--seed", "3")
     assert json.loads(out2.read_text())["cuboids"] == d["cuboids"]
 
 
@@ -77,7 +77,7 @@ def test_fit_folder_and_intrinsics_forms(tmp_path, room_png):
     "kind", ["missing", "corrupt", "zeros", "wrong_unit", "mm_focal", "rgb_size", "eight_bit"]
 )
 def test_bad_inputs_give_one_line_errors(tmp_path, room_png, kind):
-    args = ["fit", "--depth", room_png, "--preset", "nyu", "-o", tmp_path / "x.json", *FAST]
+    args = ["fit", "--depth", room_png, "--camera", "nyu", "-o", tmp_path / "x.json", *FAST]
     if kind == "missing":
         args[2] = tmp_path / "nope.png"
         expect = "depth file not found"
@@ -346,7 +346,7 @@ def test_a_phone_photo_is_fitted_upright_with_the_camera_of_its_exif(tmp_path, t
 def test_fit_writes_the_html_page_beside_the_json(tmp_path, room_png):
     pytest.importorskip("plotly")
     out = tmp_path / "room.json"
-    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--html", *FAST)
+    r = run("fit", "--depth", room_png, "--camera", "nyu", "-o", out, "--html", *FAST)
     assert r.exit_code == 0, r.output
     page = (tmp_path / "room.html").read_text()
     assert "room.html" in "".join(r.output.split())  # listed among the files written
@@ -356,7 +356,7 @@ def test_fit_writes_the_html_page_beside_the_json(tmp_path, room_png):
 def test_fit_writes_simulator_scenes_beside_the_json(tmp_path, room_png):
     mujoco = pytest.importorskip("mujoco")
     out = tmp_path / "room.json"
-    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--mjcf", "--urdf", "--usd", *FAST)
+    r = run("fit", "--depth", room_png, "--camera", "nyu", "-o", out, "--mjcf", "--urdf", "--usd", *FAST)
     assert r.exit_code == 0, r.output
     names = [c["kind"] + f"_{c['id']:02d}" for c in json.loads(out.read_text())["cuboids"]]
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "room_mjcf.xml"))
@@ -376,14 +376,14 @@ def test_rerun_recordings_of_a_frame_and_of_a_folder(tmp_path, room_png, rerun_c
     import subprocess
 
     out = tmp_path / "one.json"
-    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--rrd", *FAST)
+    r = run("fit", "--depth", room_png, "--camera", "nyu", "-o", out, "--rrd", *FAST)
     assert r.exit_code == 0, r.output
     assert subprocess.run([rerun_cli, "rrd", "verify", str(tmp_path / "one.rrd")]).returncode == 0
     folder = tmp_path / "frames"
     folder.mkdir()
     for name in ("a", "b"):
         shutil.copy(room_png, folder / f"{name}_depth.png")
-    r = run("fit", "--depth", folder, "--preset", "nyu", "-o", tmp_path / "res", "--rrd", *FAST)
+    r = run("fit", "--depth", folder, "--camera", "nyu", "-o", tmp_path / "res", "--rrd", *FAST)
     assert r.exit_code == 0, r.output
     rec = tmp_path / "res" / "cuboids.rrd"
     assert subprocess.run([rerun_cli, "rrd", "verify", str(rec)]).returncode == 0
@@ -396,7 +396,7 @@ def test_rerun_recordings_of_a_frame_and_of_a_folder(tmp_path, room_png, rerun_c
     with socket.socket() as probe:
         if probe.connect_ex(("127.0.0.1", 9876)) == 0:
             return  # a viewer is running here: the refusal cannot be seen
-    r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", tmp_path / "s.json", "--rerun", *FAST)
+    r = run("fit", "--depth", room_png, "--camera", "nyu", "-o", tmp_path / "s.json", "--rerun", *FAST)
     assert r.exit_code == 2 and "no rerun viewer answers" in r.output and not (tmp_path / "s.json").exists()
 
 
@@ -424,7 +424,7 @@ def test_rerun_streams_a_fit_to_a_running_viewer(tmp_path, room_png, rerun_cli):
                     break
             time.sleep(0.1)
         out = tmp_path / "room.json"
-        r = run("fit", "--depth", room_png, "--preset", "nyu", "-o", out, "--rerun", *FAST)
+        r = run("fit", "--depth", room_png, "--camera", "nyu", "-o", out, "--rerun", *FAST)
         assert r.exit_code == 0, r.output
     finally:
         time.sleep(1.0)

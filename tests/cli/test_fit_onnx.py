@@ -25,7 +25,7 @@ def test_fit_with_onnx_solver_matches_neural(tmp_path, room_png):
     common = [
         "--depth",
         str(room_png),
-        "--preset",
+        "--camera",
         "nyu",
         "--hypotheses",
         "512",

@@ -20,8 +20,8 @@ from typer.testing import CliRunner
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.nyu import list_nyu_frames, read_mat_v5, read_splits
-from cuboidcli.evaluation.outputs import weights_hashes
 from cuboidcli.evaluation.presets import resolve
+from cuboidcli.evaluation.provenance import weights_hashes
 from cuboidcli.evaluation.raycast import render_depth
 from cuboidcli.evaluation.runner import EvalSettings, evaluate, load_frames
 from cuboidcli.fitting.config import FitConfig

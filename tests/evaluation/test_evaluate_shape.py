@@ -13,7 +13,7 @@ from typer.testing import CliRunner
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.evaluation.aggregate import aggregate, gravity_summary, shape_summary
+from cuboidcli.evaluation.aggregate import aggregate
 from cuboidcli.evaluation.metrics import frame_metrics
 from cuboidcli.evaluation.runner import EvalSettings, evaluate, load_frames
 from cuboidcli.evaluation.shape import (
@@ -23,6 +23,7 @@ from cuboidcli.evaluation.shape import (
     synthetic_reference,
     visible_faces,
 )
+from cuboidcli.evaluation.shape_summary import gravity_summary, shape_summary
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.gravity import given_gravity
 from cuboidcli.io.result import FitResult, write_result

@@ -9,7 +9,7 @@ import pytest
 
 import cuboidcli as cb
 from cuboidcli.camera import Camera
-from cuboidcli.io.depth import InputError, Intrinsics, check_inputs, intrinsics_for_size, parse_intrinsics
+from cuboidcli.io.depth import InputError, check_inputs, intrinsics_for_size, parse_intrinsics
 
 
 def test_a_preset_carries_its_depth_unit_and_source():
@@ -44,7 +44,7 @@ def test_a_preset_is_scaled_to_the_image_with_its_depth_unit():
     assert (cam.width, cam.height, cam.depth_scale) == (1280, 960, 0.001)
     assert cam.source == "preset:nyu scaled to 1280x960"
     assert cam == Camera.preset("nyu").scaled(2.0)
-    with pytest.raises(InputError, match="--preset nyu is for 640x480 images"):
+    with pytest.raises(InputError, match="--camera nyu is for 640x480 images"):
         intrinsics_for_size(parse_intrinsics(None, "nyu"), 1000, 480, preset="nyu")
 
 
@@ -56,12 +56,6 @@ def test_the_size_note_needs_a_known_size():
     assert check_inputs(depth, Camera(50.0, 50.0, 32.0, 24.0, 64, 0)) == []
     notes = check_inputs(depth, Camera(50.0, 50.0, 32.0, 24.0, 640, 480))
     assert notes == ["intrinsics are for 640x480 but the depth map is 64x48; using them unscaled"]
-
-
-def test_the_old_name_makes_cameras():
-    cam = Intrinsics(1.0, 1.0, 0.0, 0.0, depth_scale=0.0002)
-    assert type(cam) is Camera and (cam.width, cam.height, cam.depth_scale) == (0, 0, 0.0002)
-    assert cam.camera(64, 48) == Camera(1.0, 1.0, 0.0, 0.0, 64, 48)
 
 
 def test_read_camera_sizes():

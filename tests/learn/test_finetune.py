@@ -8,7 +8,8 @@ import torch
 from cuboidcli.camera import Camera
 from cuboidcli.factories import load_learned_sampler
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.learn.finetune import DEPTH_NAME, SAMPLER_NAME, SOLVER_NAME, FinetuneConfig, finetune
+from cuboidcli.learn.finetune import DEPTH_NAME, SAMPLER_NAME, SOLVER_NAME, finetune
+from cuboidcli.learn.finetune_config import FinetuneConfig
 from cuboidcli.learn.finetune_data import load_scene
 from cuboidcli.learn.finetune_loss import Nets, backproject_grid, predicted_grid, scene_loss
 from cuboidcli.nets.checkpoint import checkpoint_dict
