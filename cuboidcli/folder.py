@@ -109,11 +109,11 @@ def fitter_for(config: FitConfig, weights: str | None, onnx: str | None):
     return Fitter(config, weights=weights, onnx=onnx, device=config.device)
 
 
-def folder_tasks(
-    job: FrameJob, files: list[Path], out_dir: Path, skip_existing: bool
-) -> tuple[list[tuple[FrameJob, str, str]], list[Path]]:
-    """The :func:`fit_file` tasks (job, frame file, result JSON) of a folder's frames, its results in
-    ``out_dir``, and the frames left out with ``skip_existing`` because their outputs are complete."""
+def folder_tasks(job, files: list[Path], out_dir: Path, skip_existing: bool) -> tuple[list, list[Path]]:
+    """The tasks (job, input file, result JSON) of a folder's inputs, their results in ``out_dir``, and the
+    inputs left out with ``skip_existing`` because their outputs are complete (``job.is_complete``): the
+    frames of a :class:`FrameJob` for :func:`fit_file`, the rooms of a
+    :class:`~cuboidcli.room_folder.RoomJob` for :func:`~cuboidcli.room_folder.fit_room_file`."""
     tasks, skipped = [], []
     for f in files:
         out_json = Path(out_dir) / result_name(f)

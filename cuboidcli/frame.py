@@ -24,8 +24,6 @@ from cuboidcli.io.depth import (
 from cuboidcli.io.photo import DEFAULT_FOV_DEG, centred_intrinsics, default_camera, read_photo
 from cuboidcli.io.result import input_record
 
-#: The packaging of a fit, named as :mod:`cuboidcli.api` imports it from here.
-
 
 @dataclass
 class FrameInput:

@@ -9,11 +9,10 @@ the same settings.
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, replace
 from pathlib import Path
 
-from cuboidcli.export.files import output_files, result_name
+from cuboidcli.export.files import output_files
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scene import SceneConfig
 from cuboidcli.folder import fitter_for
@@ -43,6 +42,15 @@ class RoomJob:
         """The files a complete room has, the JSON last."""
         return output_files(out_json, glb=self.glb, ply=self.ply, overlay=False, scenes=self.scenes)
 
+    def is_complete(self, out_json: Path) -> bool:
+        """The room's outputs exist and its JSON was fitted with this job's settings."""
+        saved = saved_settings(out_json, self.outputs(out_json))
+        if saved is None:
+            return False
+        config = replace(self.config, max_cuboids=self.scene.max_cuboids)
+        extra = {"weights": self.weights, "onnx": self.onnx}
+        return same_settings(saved.get("scene") or {}, self.scene) and same_settings(saved, config, extra)
+
 
 def rooms_in(folder: Path) -> list[Path]:
     """The rooms of a folder, sorted: its scan files and its sub-folders laid out as sequences."""
@@ -57,32 +65,6 @@ def is_rooms_folder(path: Path) -> bool:
     from cuboidcli.io.inputs import has_images
 
     return path.is_dir() and not has_images(path) and bool(rooms_in(path))
-
-
-def room_tasks(
-    job: RoomJob, rooms: list[Path], out_dir: Path, skip_existing: bool
-) -> tuple[list[tuple[RoomJob, str, str]], list[Path]]:
-    """The :func:`fit_room_file` tasks (job, room, result JSON) of a folder's rooms, their results in
-    ``out_dir``, and the rooms left out with ``skip_existing`` because their outputs are complete."""
-    tasks, skipped = [], []
-    for room in rooms:
-        out_json = Path(out_dir) / result_name(room)
-        if skip_existing and room_is_complete(out_json, job):
-            skipped.append(room)
-        else:
-            tasks.append((job, str(room), str(out_json)))
-    return tasks, skipped
-
-
-def room_is_complete(out_json: Path, job: RoomJob) -> bool:
-    """The room's outputs exist and its JSON was fitted with ``job``'s settings."""
-    saved = saved_settings(out_json, job.outputs(out_json))
-    if saved is None:
-        return False
-    want_scene = json.loads(json.dumps(job.scene.to_dict()))
-    config = replace(job.config, max_cuboids=job.scene.max_cuboids)
-    extra = {"weights": job.weights, "onnx": job.onnx}
-    return saved.get("scene") == want_scene and same_settings(saved, config, extra)
 
 
 def fit_room_file(job: RoomJob, source: str, out_json: str) -> Outcome:

@@ -2,12 +2,17 @@
 
 Starts at ``cuboidcli/cli/main.py`` and follows every ``cuboidcli`` import, at module level and inside
 functions alike (read with :mod:`ast`, never executed), transitively. ``main.py`` registers its
-subcommands from one module each (``from cuboidcli.cli import fit as _fit`` ... ``_fit.register(app)``):
-only the one named by ``--command`` (default ``fit``, which also holds ``demo``) is followed. Groups that
+subcommands from one module each (``from cuboidcli.cli import fit as _fit`` ... ``_fit.register(app)``;
+``fit``, ``demo``, ``export``, ``evaluate``, ``synth``): only the one named by ``--command`` (default
+``fit``) is followed, with the modules it imports itself (``cli/fit.py`` imports ``cli/fit_frames.py`` and
+``cli/fit_scene.py``; ``--command demo`` follows ``cli/demo.py``, which calls ``cli/fit.py``). Groups that
 ``main.py`` imports by name on first use (its ``LAZY_GROUPS``: ``train``) count only for their own
-command. Imports under ``if TYPE_CHECKING:`` never run and are not followed. Importing ``a.b.c`` runs
-``a/__init__.py`` and ``a/b/__init__.py`` too, so those count; the second figure leaves out the
-``__init__.py`` files that hold nothing but a docstring.
+command. Imports under ``if TYPE_CHECKING:`` never run and are not followed. The builders of the parts
+registry (``PARTS`` in ``cuboidcli/fitting/parts.py``) are named there as ``"module:function"`` strings and
+imported when a part is built: no import statement, so not followed (the shipped parts' builders are in
+``cuboidcli/factories.py``, which the fit imports anyway). Importing ``a.b.c`` runs ``a/__init__.py`` and
+``a/b/__init__.py`` too, so those count; the second figure leaves out the ``__init__.py`` files that hold
+nothing but a docstring.
 
     python scripts/count_fit_modules.py                      # this checkout's cuboidcli/
     python scripts/count_fit_modules.py ../other/cuboidcli   # another checkout, for a before/after figure

@@ -10,11 +10,17 @@ code that called the network. Units are the first component below ``cuboidcli`` 
 and it is upward where the callee's layer is above the caller's in that test's table (units the table does
 not know, in older checkouts, are reported as such). An upward call is a callback when the caller's file
 imports nothing of the callee's unit (a function handed down, like the command's progress printer), and an
-upward dependency when it does.
+upward dependency when it does. The builders of the parts registry (``PARTS`` in
+``cuboidcli/fitting/parts.py``), imported by name when a part is built, count as callbacks too
+(``fitting -> factories``).
 
-    python scripts/trace_fit_path.py --depth D.png --preset nyu [fit options]     # this checkout
-    python scripts/trace_fit_path.py --package ../old --depth D.png --preset nyu  # another checkout's code
-    python scripts/trace_fit_path.py --list --depth D.png --preset nyu  # and the files, as first reached
+    python scripts/trace_fit_path.py --depth D.png --camera nyu [fit options]     # this checkout
+    python scripts/trace_fit_path.py --package ../old --depth D.png --camera nyu  # another checkout's code
+    python scripts/trace_fit_path.py --list --depth D.png --camera nyu  # and the files, as first reached
+
+Every argument but ``--package`` and ``--list`` goes to ``cuboids fit`` as it is: a checkout from before
+``--camera`` (0.1.0) takes ``--preset nyu`` instead. The embedded sample frame is
+``--depth cuboidcli/data/sample/sample_depth.png -K cuboidcli/data/sample/camera.json``.
 
 The fit's outputs go to a temporary folder. Profiling slows the fit down; its timings mean nothing.
 """

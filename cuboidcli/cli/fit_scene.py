@@ -157,13 +157,14 @@ def fit_rooms_folder(
     with a summary, exit 1 if any room failed."""
     from cuboidcli.cli.common import console
     from cuboidcli.export.files import results_folder
-    from cuboidcli.room_folder import fit_room_file, room_tasks, rooms_in
+    from cuboidcli.folder import folder_tasks
+    from cuboidcli.room_folder import fit_room_file, rooms_in
     from cuboidcli.scaleout import Outcome, Summary
 
     out_dir = output or results_folder(folder)
     if out_dir.suffix == ".json" or (out_dir.exists() and not out_dir.is_dir()):
         fail(f"-o {out_dir}: give a folder for the rooms of {folder}")
-    tasks, skipped = room_tasks(job, rooms_in(folder), out_dir, skip_existing)
+    tasks, skipped = folder_tasks(job, rooms_in(folder), out_dir, skip_existing)
     summary = Summary()
     for room in skipped:
         summary.add(Outcome(room.name, "skipped"))

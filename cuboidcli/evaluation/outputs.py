@@ -20,7 +20,6 @@ if TYPE_CHECKING:
     from cuboidcli.evaluation.runner import EvalReport
 
 
-
 def _clean(obj):
     """JSON-safe copy: NaN and inf become null, tuples lists, paths strings."""
     if isinstance(obj, float):

@@ -83,6 +83,8 @@ from cuboidcli.weights import FILES
 STATE_KIND = "finetune-state"
 #: The files it writes, in the layout ``--weights DIR`` reads.
 SAMPLER_NAME, SOLVER_NAME, DEPTH_NAME = FILES["sampler"], FILES["solver"], FILES["depth"]
+
+
 def validate(
     nets: Nets, frames: list[Frame], cfg: FinetuneConfig, fit: FitConfig, ctx: DistContext | None = None
 ) -> dict:
