@@ -51,7 +51,7 @@ def frame_job(o: dict, config) -> FrameJob:
     """The job of the command's options ``o`` and FitConfig ``config``: the weights that go with the input
     and the solver, the estimator built (one line and exit 2 when it cannot be), the scene kinds checked
     and, without ``--depth``, the depth model. Call inside :func:`~cuboidcli.cli.common.user_errors`."""
-    from cuboidcli.weights import check_weights_option, default_weights_dir, shipped_path
+    from cuboidcli.weights import check_weights_option, default_weights_dir
 
     weights, rgb = o["weights"], o["depth"] is None
     check_weights_option(weights, config.solver, config.sampler)
@@ -69,12 +69,12 @@ def frame_job(o: dict, config) -> FrameJob:
     if not rgb:
         return job
     from cuboidcli.factories import DepthModelOptions
+    from cuboidcli.weights import depth_model_path
 
-    model = o["depth_model"]
     return replace(
         job,
         depth_model=DepthModelOptions(
-            model if model is None or model.startswith("hf:") else str(shipped_path(model)),
+            depth_model_path(o["depth_model"]),
             o["depth_model_kind"],
             o["relative_scale"],
             o["relative_shift"],
