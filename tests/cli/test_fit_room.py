@@ -122,6 +122,11 @@ def test_a_folder_of_rooms_runs_on_workers_and_resumes(tmp_path):
     assert json.loads((out / "a_cuboids.json").read_text())["frame"] == "world"
     again = run("fit", rooms, "-o", out, "--voxel", "0.1", "--glb")
     assert "0 done, 2 skipped" in again.output
+    # a result written before a setting existed was fitted with its default: still complete
+    saved = json.loads((out / "a_cuboids.json").read_text())
+    del saved["settings"]["refine_iters"], saved["settings"]["scene"]["virtual_view_m"]
+    (out / "a_cuboids.json").write_text(json.dumps(saved))
+    assert "0 done, 2 skipped" in run("fit", rooms, "-o", out, "--voxel", "0.1", "--glb").output
     other = run("fit", rooms, "-o", out, "--voxel", "0.12", "--glb")  # other settings: fitted again
     assert "2 done, 0 skipped" in other.output
 
