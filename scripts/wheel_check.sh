@@ -32,9 +32,9 @@ run venv/bin/cuboids demo -o demo
 test -s demo/sample_cuboids.json && test -s demo/sample_cuboids.glb
 cp "$SAMPLE/sample_depth.png" d.png
 cp "$SAMPLE/sample.png" rgb.png
-run venv/bin/cuboids fit --depth d.png --preset nyu --sampler learned --solver neural --hypotheses 512 -o n.json -q
+run venv/bin/cuboids fit --depth d.png --camera nyu --sampler learned --solver neural --hypotheses 512 -o n.json -q
 run venv/bin/cuboids export --onnx s.onnx
-run venv/bin/cuboids fit --depth d.png --preset nyu --solver onnx --onnx s.onnx --hypotheses 512 -o o.json -q
+run venv/bin/cuboids fit --depth d.png --camera nyu --solver onnx --onnx s.onnx --hypotheses 512 -o o.json -q
 run venv/bin/cuboids fit rgb.png -K 518.86,519.47,325.58,253.74 --hypotheses 512 -o r.json -q
 # A photo without any camera information: fitted with the default field of view and one warning.
 run venv/bin/cuboids fit rgb.png --hypotheses 512 -o p.json -q
