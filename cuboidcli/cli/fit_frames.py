@@ -38,9 +38,12 @@ def check_extras(scenes: tuple[str, ...]) -> None:
             fail(message)
 
 
-def scene_kinds(o: dict, kinds=("html", "mjcf", "urdf", "usd", "rrd")) -> tuple[str, ...]:
-    """The scene files the options ask for (``--html``, ``--mjcf``, ...), in the order of ``kinds``."""
-    return tuple(kind for kind in kinds if o[kind])
+def scene_kinds(o: dict, kinds: tuple[str, ...] | None = None) -> tuple[str, ...]:
+    """The scene files the options ask for (``--html``, ``--mjcf``, ...), in the order of ``kinds`` (None:
+    every kind of :data:`cuboidcli.export.files.SCENES`)."""
+    from cuboidcli.export.files import SCENES
+
+    return tuple(kind for kind in (tuple(SCENES) if kinds is None else kinds) if o[kind])
 
 
 def _str_or_none(p) -> str | None:

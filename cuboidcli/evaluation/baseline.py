@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.fitting.box import ROBUST_PERCENTILES
 
 PLANE_DISTANCE_M = 0.025
 """RANSAC inlier distance of a plane, metres."""
@@ -203,7 +204,7 @@ def planes_and_clusters(
         cloud = cloud.voxel_down_sample(voxel_m)
     rest = np.asarray(cloud.points)
     heights = rest @ up
-    low, high = np.percentile(heights, [1.0, 99.0])
+    low, high = np.percentile(heights, ROBUST_PERCENTILES)
     inside = rest.mean(axis=0)
     min_plane = max(MIN_PLANE_POINTS, int(MIN_PLANE_FRACTION * len(rest)))
     rng = np.random.default_rng(seed)

@@ -14,7 +14,7 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.gravity import Gravity
 from cuboidcli.io.depth import InputError, InputWarning
-from cuboidcli.io.result import frame_result, read_result, same_settings, write_result
+from cuboidcli.io.result import frame_result, same_settings, saved_settings, write_result
 
 
 def saved_fit_path(save_fits_dir: Path, seed: int, name: str) -> Path:
@@ -116,9 +116,5 @@ def fit_and_save(
 
 def reusable_fit(path: Path, config: FitConfig, weights_dir: Path | None) -> bool:
     """A saved fit that a rerun may score instead of fitting: valid "cuboids/1", the same settings."""
-    try:
-        saved = read_result(path)
-    except (OSError, ValueError, KeyError, TypeError):
-        return False
-    wanted = _weights_setting(weights_dir)
-    return isinstance(saved.settings, dict) and same_settings(saved.settings, config, wanted)
+    saved = saved_settings(path, [path])
+    return saved is not None and same_settings(saved, config, _weights_setting(weights_dir))

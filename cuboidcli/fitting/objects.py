@@ -31,6 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
 from cuboidcli.geometry.gravity import level_frame
 
@@ -122,7 +123,7 @@ def group_objects(
     if floors:  # the floor's top surface
         floor_z = max(c.top(z) for c in floors)
     elif len(points):
-        floor_z = float(np.percentile(level[:, 2], 1))
+        floor_z = float(np.percentile(level[:, 2], ROBUST_PERCENTILES[0]))
     else:
         return []
     keep = ~np.isin(labels, shell) & (level[:, 2] > floor_z + SHELL_CLEARANCE * voxel_m)

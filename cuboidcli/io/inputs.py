@@ -11,8 +11,6 @@ from cuboidcli.io.dataset import DEPTH_SUFFIXES
 #: File endings taken for images (a photo, or a depth PNG before its channels are looked at).
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 
-__all__ = ["DEPTH_SUFFIXES", "IMAGE_SUFFIXES", "depth_maps_in", "has_images", "is_colour_image", "photos_in"]
-
 
 def _files(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
     return sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in suffixes and p.is_file())
