@@ -1,0 +1,202 @@
+"""The camera and the room from a photo's own lines: the down direction, the focal length and the room's
+horizontal axes, from the vanishing points of its Manhattan directions.
+
+:func:`estimate_from_lines` finds the image's line segments (:mod:`cuboidcli.geometry.lines`), fits the
+three orthogonal scene directions and, when it is not given, the focal length to them
+(:mod:`cuboidcli.geometry.manhattan_vp`), and reads off:
+
+- the down direction: the scene direction nearest the image's vertical (its y axis; an ``up_hint`` for
+  another), signed to point down. Vertical edges fix it directly, and the horizon (the line through the
+  two horizontal vanishing points) fixes it as its normal;
+- the focal length: orthogonal directions d1 = K^-1 v1 and d2 = K^-1 v2 give, with the principal point
+  c, f^2 = -(v1 - c) . (v2 - c) for two finite vanishing points (fy / fx as given, else 1);
+- the room's axes for Manhattan alignment: up and the two horizontal directions, exactly orthogonal.
+
+Each comes with a confidence in [0, 1], 0 meaning "do not use". The image should be upright as displayed
+(EXIF orientation applied): the vertical is the scene direction nearest the image's vertical.
+
+Vectors are in the OpenCV camera frame (x right, y down, z forward); pixels have their centres at integers.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from cuboidcli.geometry.lines import detect_segments
+from cuboidcli.geometry.manhattan_vp import ManhattanFit, fit_manhattan
+
+#: The down direction is fully backed when the vertical vanishing point and the weaker horizontal one
+#: hold this share of the segments' length between them (the vertical edges fix down, and so does the
+#: horizon, which needs both horizontal vanishing points).
+DOWN_EVIDENCE = 0.25
+#: Standard deviation (degrees) of the down direction, from the refinement's covariance, at which its
+#: confidence falls to 1/e.
+DOWN_SIGMA_DEG = 1.0
+#: The focal length is fully backed when (a) the best frame at a focal length 20 % or more away explains
+#: the segments worse by this many segments' worth,
+FOCAL_MARGIN = 10.0
+#: (b) each of the two vanishing points that fix it holds this share of the segments' length,
+FOCAL_EVIDENCE = 0.1
+#: and (c) the relative standard deviation of the focal length (from the covariance) is well below this.
+FOCAL_SIGMA = 0.05
+#: Below this share of the segments' length, a vanishing point does not count as seen.
+MIN_SUPPORT = 0.02
+#: Three directions fitted to N segments with no common structure (random lines, round things) explain
+#: up to about CHANCE_BASE + CHANCE_SCALE / sqrt(N) of their length (measured on drawings of random
+#: segments: 0.3-0.55 of 40-60 segments, 0.2-0.3 of 100-500): only the support beyond that counts, and
+#: both confidences grow from 0 there to full COHERENT_SPAN above it.
+CHANCE_BASE = 0.2
+CHANCE_SCALE = 1.8
+COHERENT_SPAN = 0.2
+
+
+@dataclass(frozen=True)
+class LineEstimate:
+    """What a photo's lines say about its camera and its room."""
+
+    down: np.ndarray
+    """(3,) unit vector in camera coordinates pointing to the floor."""
+    down_confidence: float
+    """In [0, 1]: how well the lines fix the down direction."""
+    focal_px: float | None
+    """fx in pixels from the vanishing points; None when fx was given or the lines cannot fix it (fewer
+    than two vanishing points seen)."""
+    focal_confidence: float
+    """In [0, 1]: how well the lines fix the focal length (0 when ``focal_px`` is None)."""
+    axes: np.ndarray
+    """(3, 3) the room's Manhattan frame as columns: up (= -down), then two horizontal axes (the better
+    supported first), exactly orthogonal and right-handed, as
+    :attr:`cuboidcli.geometry.gravity.Gravity.frame`."""
+    support: tuple[float, float, float]
+    """Share of the segments' length along each column of ``axes``."""
+    n_segments: int
+    """Line segments found in the image."""
+    rms_px: float
+    """Root mean square distance (pixels at up to 640 on the long side) of the supporting segments'
+    endpoints from the lines to their vanishing points: their angular consistency."""
+    fit: ManhattanFit
+    """The vanishing-point fit behind it (segment labels, vanishing points, covariance)."""
+
+    def to_dict(self) -> dict:
+        """A JSON-ready record (no segment labels)."""
+        vps = self.fit.vanishing_points()
+        return {
+            "down": [round(float(x), 6) for x in self.down],
+            "down_confidence": round(float(self.down_confidence), 4),
+            "focal_px": None if self.focal_px is None else round(float(self.focal_px), 2),
+            "focal_confidence": round(float(self.focal_confidence), 4),
+            "manhattan_frame": [[round(float(x), 6) for x in row] for row in self.axes],
+            "support": [round(float(s), 4) for s in self.support],
+            "vanishing_points": [[round(float(x), 6) for x in v / np.linalg.norm(v)] for v in vps],
+            "n_segments": int(self.n_segments),
+            "rms_px": round(float(self.rms_px), 3),
+        }
+
+
+def estimate_from_lines(
+    rgb: np.ndarray,
+    fx: float | None = None,
+    fy: float | None = None,
+    cx: float | None = None,
+    cy: float | None = None,
+    *,
+    up_hint: np.ndarray | None = None,
+    seed: int = 0,
+) -> LineEstimate | None:
+    """The down direction, the focal length and the room's axes from an image's lines.
+
+    Args:
+        rgb: (H, W, 3) uint8 RGB image, upright (EXIF orientation applied), or (H, W) uint8 grey.
+        fx, fy: focal lengths in pixels, when known (fx None: estimated from the lines).
+        cx, cy: principal point in pixels; None: the image centre.
+        up_hint: (3,) roughly up in camera coordinates, to choose the vertical among the three scene
+            directions; None: the image's up, (0, -1, 0).
+        seed: seed of the RANSAC sampler (the same seed gives the same estimate).
+
+    Returns:
+        The estimate, or None when the image has too few line segments (a plain wall, a blurred photo).
+        Raises ValueError only for an image that is not (H, W, 3) or (H, W) uint8, or a bad ``up_hint``.
+    """
+    rgb = np.asarray(rgb)
+    segments = detect_segments(rgb)
+    height, width = rgb.shape[:2]
+    fit = fit_manhattan(segments, (width, height), fx, fy, cx, cy, seed=seed)
+    if fit is None:
+        return None
+    return line_estimate(fit, len(segments), up_hint=up_hint, focal_given=fx is not None or fy is not None)
+
+
+def line_estimate(
+    fit: ManhattanFit,
+    n_segments: int,
+    up_hint: np.ndarray | None = None,
+    focal_given: bool = False,
+) -> LineEstimate:
+    """The :class:`LineEstimate` of a vanishing-point fit (see :func:`estimate_from_lines`)."""
+    rot = fit.rotation
+    hint = np.asarray([0.0, -1.0, 0.0] if up_hint is None else up_hint, dtype=np.float64).reshape(-1)
+    if hint.shape != (3,) or not np.all(np.isfinite(hint)) or np.linalg.norm(hint) < 1e-12:
+        raise ValueError(f"up_hint must be three finite numbers, not all zero (got {up_hint!r})")
+    hint = hint / np.linalg.norm(hint)
+    k = int(np.abs(rot.T @ hint).argmax())
+    up = rot[:, k] * (1.0 if rot[:, k] @ hint >= 0 else -1.0)
+    o1, o2 = sorted((a for a in range(3) if a != k), key=lambda a: -fit.support[a])
+    h1 = rot[:, o1] - (rot[:, o1] @ up) * up
+    h1 /= np.linalg.norm(h1)
+    axes = np.stack([up, h1, np.cross(up, h1)], axis=1)
+    support = (float(fit.support[k]), float(fit.support[o1]), float(fit.support[o2]))
+
+    chance = CHANCE_BASE + CHANCE_SCALE / math.sqrt(max(n_segments, 1))
+    coherence = min(1.0, max(0.0, (sum(support) - chance) / COHERENT_SPAN))
+    # down: the vertical edges and the horizon (both horizontal vanishing points) back it
+    evidence = coherence * min(1.0, (support[0] + support[2]) / DOWN_EVIDENCE)
+    sd_deg = math.inf
+    if np.all(np.isfinite(fit.covariance[:3, :3])):
+        p = np.eye(3) - np.outer(up, up)  # a small rotation w moves up by w x up: its part across up
+        sd_deg = math.degrees(math.sqrt(max(0.0, float(np.trace(p @ fit.covariance[:3, :3] @ p)))))
+    down_conf = evidence * math.exp(-sd_deg / DOWN_SIGMA_DEG)
+    if max(support) < MIN_SUPPORT or sum(s >= MIN_SUPPORT for s in support) < 2:
+        down_conf = 0.0  # one family of parallel edges leaves a rotation about it free
+
+    focal, focal_conf = None, 0.0
+    if not focal_given:
+        focal, focal_conf = _focal_confidence(fit)
+        focal_conf *= coherence
+    return LineEstimate(
+        down=-up,
+        down_confidence=float(down_conf),
+        focal_px=focal,
+        focal_confidence=float(focal_conf),
+        axes=axes,
+        support=support,
+        n_segments=int(n_segments),
+        rms_px=fit.rms_px,
+        fit=fit,
+    )
+
+
+def _focal_confidence(fit: ManhattanFit) -> tuple[float | None, float]:
+    """(fx or None, confidence) of a fit with a free focal length.
+
+    The focal length is fixed by the two vanishing points nearest the principal point (a far one only
+    says where the others lie): both must be seen, and the weaker one's support, the margin over rival
+    focal lengths and the covariance's relative standard deviation each scale the confidence.
+    """
+    # distance of each vanishing point from the principal point in focal lengths: tan of its angle
+    # to the optical axis, through the rotation (no division by a vanishing point at infinity)
+    rot = fit.rotation
+    tan = np.hypot(rot[0], rot[1]) / np.maximum(np.abs(rot[2]), 1e-12)
+    pair = np.argsort(tan)[:2]
+    weaker = float(fit.support[pair].min())
+    sd = math.sqrt(fit.covariance[3, 3]) if np.isfinite(fit.covariance[3, 3]) else math.inf
+    if weaker < MIN_SUPPORT or not math.isfinite(sd):
+        return None, 0.0
+    conf = (
+        min(1.0, max(0.0, fit.focal_margin) / FOCAL_MARGIN)
+        * min(1.0, weaker / FOCAL_EVIDENCE)
+        * math.exp(-sd / FOCAL_SIGMA)
+    )
+    return float(fit.focal_px), conf
