@@ -41,16 +41,17 @@ def write_frames(folder: Path, n: int) -> list[Path]:
 
 
 def run_engine(label: str, files: list[Path], out: Path, config, workers: int, ray: str | None) -> dict:
-    from cuboidcli.folder import FrameJob, fit_file
+    from cuboidcli.job import Job, fit_task
+    from cuboidcli.load import LoadOptions
     from cuboidcli.scaleout import run_tasks
 
     out.mkdir(parents=True, exist_ok=True)
-    job = FrameJob(config=config, preset="nyu")
+    job = Job(config=config, options=LoadOptions(camera="nyu"), source="depth")
     tasks = [(job, str(f), str(out / f"{f.stem}_cuboids.json")) for f in files]
     stamps: list[float] = []
     t0 = time.perf_counter()
     outcomes = run_tasks(
-        fit_file,
+        fit_task,
         tasks,
         [f.name for f in files],
         workers=workers,

@@ -59,7 +59,8 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1000)
     ap.add_argument("--views", type=int, default=12)
     args = ap.parse_args()
-    from cuboidcli.io.sequence import fuse_sequence, read_sequence
+    from cuboidcli.io.sequence import read_sequence
+    from cuboidcli.load.fuse import fuse_sequence
 
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

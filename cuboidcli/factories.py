@@ -6,12 +6,12 @@ The parts themselves live below (:mod:`cuboidcli.solvers`, :mod:`cuboidcli.sampl
 ``--weights`` value into those is done here, with the weights registry (:mod:`cuboidcli.weights`):
 
 - :func:`make_solver` and :func:`make_sampler`: the part a name of the registry
-  (:data:`cuboidcli.fitting.parts.PARTS`) stands for, built by its builder (the functions ``*_solver`` and
-  ``*_sampler`` below) with the weights file of its network; :func:`load_learned_sampler` the learned
-  sampler from a weights value;
+  (:data:`cuboidcli.fitting.parts.PARTS`) stands for, built by its builder (a function in the part's own
+  module, ``cuboidcli.solvers.numerical:build``) with the weights file of its network;
+  :func:`load_learned_sampler` the learned sampler from a weights value;
 - :func:`make_depth_estimator`: the built-in depth network, a user's ONNX model or a Hugging Face model;
-  :func:`depth_estimator` the same for :class:`DepthModelOptions`, built once per process;
-  :func:`depth_for_fit` depth from an RGB image in one call.
+  :func:`depth_estimator` the same for :class:`DepthModelOptions`, built once per process (depth from an
+  RGB image is :func:`cuboidcli.load.frame.depth_from_rgb`, the one place that asks for it).
 
 :class:`cuboidcli.api.Fitter` builds its solver and sampler here; so do the evaluation runs, the scripts
 and the benchmarks.
@@ -26,12 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
-from cuboidcli.camera import Camera
 from cuboidcli.fitting import parts
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.parts import BuildInputs
-from cuboidcli.sampling import LocalSampler, Sampler, SequentialSampler, UniformSampler
-from cuboidcli.solvers.base import CuboidSolver, SizeBounds
+from cuboidcli.sampling import Sampler
+from cuboidcli.solvers.base import CuboidSolver
 from cuboidcli.weights import resolve, weights_for
 
 
@@ -66,54 +65,13 @@ def _build(part: parts.Part, config: FitConfig, weights_dir, onnx_path, device: 
     return part.build(BuildInputs(config, weights, onnx, device))
 
 
-def _bounds(config: FitConfig) -> SizeBounds:
-    return SizeBounds(config.a_min, config.a_max)
-
-
-def numerical_solver(inputs: BuildInputs) -> CuboidSolver:
-    from cuboidcli.solvers.numerical import NumericalSolver
-
-    c = inputs.config
-    return NumericalSolver(bounds=_bounds(c), lr=c.solver_lr, iters=c.solver_iters, backend=c.backend)
-
-
-def neural_solver(inputs: BuildInputs) -> CuboidSolver:
-    from cuboidcli.solvers.neural import NeuralSolver
-
-    return NeuralSolver(weights=inputs.weights, device=inputs.device, bounds=_bounds(inputs.config))
-
-
-def onnx_solver(inputs: BuildInputs) -> CuboidSolver:
-    from cuboidcli.solvers.onnx import OnnxSolver
-
-    if inputs.onnx is None:
-        raise ValueError("the onnx solver needs an ONNX file (--onnx solver.onnx)")
-    return OnnxSolver(str(inputs.onnx), _bounds(inputs.config))
-
-
-def sequential_sampler(inputs: BuildInputs) -> Sampler:
-    return SequentialSampler()
-
-
-def learned_sampler(inputs: BuildInputs) -> Sampler:
-    from cuboidcli.sampling.learned import LearnedSampler
-
-    return LearnedSampler.load(inputs.weights, device=inputs.device)
-
-
-def local_sampler(inputs: BuildInputs) -> Sampler:
-    return LocalSampler()
-
-
-def uniform_sampler(inputs: BuildInputs) -> Sampler:
-    return UniformSampler()
-
-
 def load_learned_sampler(weights: str | os.PathLike | None = None, device: str = "cpu"):
     """The learned sampler with the weights a ``--weights`` value names (:func:`cuboidcli.weights.resolve`:
     a .pt file as given, ``<folder>/sampler_v2.pt``, None: ``models/sampler_v2.pt`` or
     ``$CUBOIDS_SAMPLER_WEIGHTS``). Raises FileNotFoundError when that file is missing."""
-    return learned_sampler(BuildInputs(FitConfig(), resolve("sampler", weights), device=device))
+    from cuboidcli.sampling.learned import LearnedSampler
+
+    return LearnedSampler.load(resolve("sampler", weights), device=device)
 
 
 def make_depth_estimator(
@@ -178,35 +136,6 @@ def make_depth_estimator(
         f"depth model {model}: expected an .onnx file, a Hugging Face model (hf:owner/name or a folder "
         "saved with save_pretrained) or a .pt checkpoint of the built-in network"
     )
-
-
-def depth_for_fit(
-    rgb: np.ndarray,
-    camera: Camera,
-    model: str | os.PathLike | None = None,
-    kind: str | None = None,
-    scale: float | None = None,
-    shift: float | None = None,
-    partial_depth: np.ndarray | None = None,
-    device: str = "cpu",
-    timing: dict | None = None,
-    *,
-    camera_height_m: float | None = None,
-    **onnx_options,
-) -> tuple[np.ndarray, str]:
-    """Depth for ``fit_depth`` from an RGB image: ``(depth_m float32 (H, W), one-line description)``.
-
-    rgb: (H, W, 3) uint8 RGB; camera: its intrinsics. ``model`` etc. as :func:`make_depth_estimator`
-    (``onnx_options``: its ``onnx_*`` keywords); ``partial_depth`` (H, W) metres, 0 = unknown, aligns a
-    relative model's output; ``camera_height_m`` scales it from the floor. ``timing``: a dict that receives
-    ``"depth"``, the seconds of the estimation itself (building the estimator excluded).
-    """
-    from cuboidcli.depth.estimator import estimate_depth
-
-    estimator = make_depth_estimator(
-        model, kind, scale, shift, partial_depth, device, camera_height_m=camera_height_m, **onnx_options
-    )
-    return estimate_depth(estimator, rgb, camera, timing)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Running many independent frames: in this process, in local worker processes, or as Ray tasks.
 
 Every frame is a task ``fn(*args)`` that returns an :class:`Outcome` and never raises for a bad frame (the
-task functions of :mod:`cuboidcli.folder` and :mod:`cuboidcli.evaluation.runner` catch their errors), so a
+task functions of :mod:`cuboidcli.job` and :mod:`cuboidcli.evaluation.runner` catch their errors), so a
 failed frame is reported and the others go on. A frame's result depends only on its inputs and the seed,
 not on the process that runs it, so every engine gives the same results.
 

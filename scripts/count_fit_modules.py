@@ -4,15 +4,15 @@ Starts at ``cuboidcli/cli/main.py`` and follows every ``cuboidcli`` import, at m
 functions alike (read with :mod:`ast`, never executed), transitively. ``main.py`` registers its
 subcommands from one module each (``from cuboidcli.cli import fit as _fit`` ... ``_fit.register(app)``;
 ``fit``, ``demo``, ``export``, ``evaluate``, ``synth``): only the one named by ``--command`` (default
-``fit``) is followed, with the modules it imports itself (``cli/fit.py`` imports ``cli/fit_frames.py`` and
-``cli/fit_scene.py``; ``--command demo`` follows ``cli/demo.py``, which calls ``cli/fit.py``). Groups that
+``fit``) is followed, with the modules it imports itself (``cli/fit.py`` imports ``cli/fit_request.py`` and
+``cli/fit_run.py``; ``--command demo`` follows ``cli/demo.py``, which calls ``cli/fit.py``). Groups that
 ``main.py`` imports by name on first use (its ``LAZY_GROUPS``: ``train``) count only for their own
 command. Imports under ``if TYPE_CHECKING:`` never run and are not followed. The builders of the parts
 registry (``PARTS`` in ``cuboidcli/fitting/parts.py``) are named there as ``"module:function"`` strings and
-imported when a part is built: no import statement, so not followed (the shipped parts' builders are in
-``cuboidcli/factories.py``, which the fit imports anyway). Importing ``a.b.c`` runs ``a/__init__.py`` and
-``a/b/__init__.py`` too, so those count; the second figure leaves out the ``__init__.py`` files that hold
-nothing but a docstring.
+imported when a part is built: no import statement, yet the fit builds its parts, so the modules they name
+(the parts' own, ``cuboidcli.solvers.numerical``) are followed too. Importing ``a.b.c`` runs
+``a/__init__.py`` and ``a/b/__init__.py`` too, so those count; the second figure leaves out the
+``__init__.py`` files that hold nothing but a docstring.
 
     python scripts/count_fit_modules.py                      # this checkout's cuboidcli/
     python scripts/count_fit_modules.py ../other/cuboidcli   # another checkout, for a before/after figure
@@ -30,6 +30,8 @@ from pathlib import Path
 
 ROOT = "cuboidcli"
 MAIN = "cuboidcli.cli.main"
+#: The parts registry, whose ``"module:function"`` strings name the builders a fit imports by name.
+REGISTRY = "cuboidcli.fitting.parts"
 
 
 def package_modules(package: Path) -> dict[str, Path]:
@@ -73,6 +75,19 @@ def imports_of(module: str, path: Path, known: dict[str, Path]) -> list[tuple[st
                 sub = f"{base}.{alias.name}"
                 out.append((sub if sub in known else base, alias.asname or alias.name))
     return [(name, bound) for name, bound in out if name == ROOT or name.startswith(ROOT + ".")]
+
+
+def builders_of(path: Path) -> list[str]:
+    """The modules the ``"cuboidcli.module:function"`` strings of a file name (the registry's builders)."""
+    tree = ast.parse(path.read_text(encoding="utf-8"), str(path))
+    return [
+        node.value.partition(":")[0]
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Constant)
+        and isinstance(node.value, str)
+        and node.value.startswith(ROOT + ".")
+        and ":" in node.value
+    ]
 
 
 def _owner(name: str, known: dict[str, Path]) -> str | None:
@@ -122,7 +137,8 @@ def reached(package: Path, command: str = "fit") -> list[str]:
         seen.add(module)
         parts = module.split(".")
         todo += [".".join(parts[:i]) for i in range(1, len(parts))]  # the packages above it run first
-        for name, _ in imports_of(module, known[module], known):
+        named = builders_of(known[module]) if module == REGISTRY else []
+        for name, _ in [*imports_of(module, known[module], known), *((n, "") for n in named)]:
             target = _owner(name, known)
             if target is not None and not (module == MAIN and target in others):
                 todo.append(target)

@@ -21,6 +21,7 @@ from cuboidcli.factories import make_sampler, make_solver
 from cuboidcli.fitting.assign import assign_points
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth
+from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.io.depth import read_depth
 from cuboidcli.io.result import read_result
 from cuboidcli.synth import render_boxes
@@ -55,7 +56,7 @@ def main() -> None:
     explained_count: dict[int, int] = {}
     for seed in range(args.seeds):
         cuboids, info = fit_depth(depth, camera, replace(config, seed=seed), solver=solver, sampler=sampler)
-        labels = assign_points(pts, cuboids, config.tau_sq_m2, config.beta, config.tau_c, True)
+        labels = assign_points(pts, cuboids, ScoreParams(config.tau_sq_m2, config.beta, config.tau_c, True))
         got = []
         for o in sorted(names):
             size = int((obj == o).sum())

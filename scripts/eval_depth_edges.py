@@ -43,7 +43,7 @@ from cuboidcli.evaluation.runner import load_frames
 from cuboidcli.factories import DepthModelOptions, depth_estimator
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_depth
-from cuboidcli.folder import fitter_for
+from cuboidcli.job import fitter_for
 
 KEYS = (
     ("cuboids", "\\|M\\|", "{:.2f}"),

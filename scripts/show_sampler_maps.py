@@ -42,10 +42,10 @@ def main() -> None:
         cuboids, info = fit_depth(depth, frame.camera, config, solver=make_solver(config), sampler=sampler)
         state = torch.from_numpy(info.state).float()
         print(f"state after {len(cuboids)} cuboid(s)")
-    ctx = SamplingContext(prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, state, args.after)
+    ctx = SamplingContext(prep.points, prep.grid.index, prep.grid.shape, prep.grid.depth, state, args.after)
     with torch.no_grad():
         p, q = sampler.distributions(ctx)
-    hs, ws = prep.grid_shape
+    hs, ws = prep.grid.shape
     h, w = depth.shape
     tiles = []
     rgb = frame.rgb()
@@ -56,7 +56,7 @@ def main() -> None:
     ]
     for label, pj in maps:
         grid = np.zeros(hs * ws)
-        grid[prep.grid_index.numpy()] = pj.numpy()
+        grid[prep.grid.index.numpy()] = pj.numpy()
         img = (255 * grid / max(grid.max(), 1e-12)).reshape(hs, ws).astype(np.uint8)
         img = cv2.applyColorMap(
             cv2.resize(img, (w // 2, h // 2), interpolation=cv2.INTER_NEAREST), cv2.COLORMAP_INFERNO

@@ -63,11 +63,13 @@ def test_result_outputs(room_result, tmp_path):
     assert doc["fit_info"]["gains"] == res.info.gains
     path = res.save_json(tmp_path / "r.json")
     assert json.loads(path.read_text())["cuboids"] == json.loads(json.dumps(doc["cuboids"]))
-    glb = res.save_glb(tmp_path / "r.glb", with_points=True)
-    assert glb.read_bytes()[:4] == b"glTF"
-    ply = res.save_ply(tmp_path / "r_points.ply")
-    assert ply["cuboids_ply"] == tmp_path / "r_cuboids.ply"
-    assert ply["points_ply"].read_bytes().startswith(b"ply")
+    written = res.save(tmp_path / "g.json", ("glb",), with_points=True)
+    assert written == [tmp_path / "g.json", tmp_path / "g.glb"]
+    assert written[1].read_bytes()[:4] == b"glTF"
+    written = res.save(tmp_path / "p.json", ("ply",))
+    assert written == [tmp_path / "p.json", tmp_path / "p_points.ply", tmp_path / "p_cuboids.ply"]
+    assert written[1].read_bytes().startswith(b"ply")
+    assert json.loads(written[0].read_text())["cuboids"] == json.loads(path.read_text())["cuboids"]
     rgb = np.full((480, 640, 3), 200, np.uint8)
     img = res.overlay(rgb)
     assert img.shape == (480, 640, 3) and img.dtype == np.uint8
@@ -148,9 +150,14 @@ def test_cli_and_api_write_the_same_cuboids(tmp_path, room_png, room_depth, nyu_
     res = cb.fit(depth, cb.Camera.preset("nyu"), **QUICK)
     cli_doc = json.loads(out.read_text())
     assert cli_doc["cuboids"] == json.loads(json.dumps(res.to_json()["cuboids"]))
+    # the same file read the same way: the same settings, how it was read included
+    read = cb.Fitter(**QUICK).fit(room_png, camera_preset="nyu")
+    assert read.to_json()["cuboids"] == res.to_json()["cuboids"]
     assert {k: v for k, v in cli_doc["settings"].items() if k != "theta_used"} == {
-        k: v for k, v in json.loads(json.dumps(res.settings)).items() if k != "theta_used"
+        k: v for k, v in json.loads(json.dumps(read.settings)).items() if k != "theta_used"
     }
+    assert cli_doc["settings"]["load"] == {"intrinsics": None, "camera": "nyu", "depth_scale": None}
+    assert res.settings["load"] == {"intrinsics": None, "camera": None, "depth_scale": None}  # an array
 
 
 def test_import_is_light_and_the_library_never_loads_the_cli_packages(tmp_path):
@@ -191,9 +198,9 @@ def test_a_12_megapixel_frame_is_fitted_on_the_papers_4800_points(room_depth, ny
     assert FitConfig(grid_step=8).step_for(3024, 4032) == 8
 
 
-def test_fit_photo_reads_the_camera_from_exif_and_warns_without_one(tmp_path):
-    """Fitter.fit_photo: a photo with a 35 mm equivalent focal length gets fx from it; one without any camera
-    information is fitted with the default field of view and one InputWarning."""
+def test_a_photo_gets_its_camera_from_exif_and_a_warning_without_one(tmp_path):
+    """Fitter.fit on a photo's path: a photo with a 35 mm equivalent focal length gets fx from it; one
+    without any camera information is fitted with the default field of view and one InputWarning."""
     import warnings
 
     from PIL import Image
@@ -208,10 +215,10 @@ def test_fit_photo_reads_the_camera_from_exif_and_warns_without_one(tmp_path):
     fitter = cb.Fitter(hypotheses=64, max_cuboids=1, align="free", theta=-1e9, device="cpu")
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        res = fitter.fit_photo(tmp_path / "exif.jpg")
+        res = fitter.fit(tmp_path / "exif.jpg")
     assert res.camera.fx == pytest.approx(28 / 36 * 160) and res.camera.cx == 79.5
     assert res.record.input["intrinsics_source"] == "exif: FocalLengthIn35mmFilm 28 mm"
     with pytest.warns(InputWarning, match="63 degree field of view") as caught:
-        bare = fitter.fit_photo(tmp_path / "bare.jpg")
+        bare = fitter.fit(tmp_path / "bare.jpg")
     assert len(caught) == 1 and len(bare.cuboids) == 1
     assert bare.record.input["intrinsics_source"].startswith("default:")

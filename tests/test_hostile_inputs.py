@@ -244,7 +244,7 @@ def test_internal_error_prints_one_line_and_saves_the_traceback(corpus, tmp_path
     def broken(*args, **kwargs):
         raise RuntimeError("the solver lost its way\nsecond line")
 
-    monkeypatch.setattr(pipeline, "fit_depth", broken)
+    monkeypatch.setattr(pipeline, "estimate", broken)
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
     monkeypatch.chdir(tmp_path)
     result = _invoke([*FIT, "-o", "{out}/r.json"], corpus, tmp_path)

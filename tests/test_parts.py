@@ -22,9 +22,12 @@ SOLVERS = [p for p in parts.PARTS if p.role == "solver"]
 def test_one_entry_per_name_and_builders_that_resolve():
     assert len({(p.role, p.name) for p in parts.PARTS}) == len(parts.PARTS)
     assert {p.role for p in parts.PARTS} == set(parts.ROLES)
+    home = {"sampler": "cuboidcli.sampling", "solver": "cuboidcli.solvers"}
     for p in parts.PARTS:
         module, _, function = p.builder.partition(":")
         assert callable(getattr(importlib.import_module(module), function)), p
+        # a builder lives with its part, below the estimator, not in a layer above it
+        assert module == home[p.role] or module.startswith(home[p.role] + "."), p
         assert p.network in (None, *weights.KINDS) and p.help and "\n" not in p.help
     assert parts.SAMPLERS == ("sequential", "learned", "local", "uniform")
     assert parts.SOLVERS == ("numerical", "neural", "onnx")
@@ -67,7 +70,7 @@ def test_unknown_names_are_refused_with_the_registered_ones():
 def test_a_new_part_is_one_line(monkeypatch):
     """A part registered with its builder is built, accepted by the settings' check and loads the weights
     its network kind says, with nothing else to change."""
-    mine = parts.Part("sampler", "mine", "cuboidcli.factories:uniform_sampler", "sampler", "a test sampler")
+    mine = parts.Part("sampler", "mine", "cuboidcli.sampling:build_uniform", "sampler", "a test sampler")
     monkeypatch.setattr(parts, "PARTS", (*parts.PARTS, mine))
     assert make_sampler("mine").name == "uniform"
     assert weights.networks_loaded("numerical", "mine") == ["sampler"]
@@ -119,7 +122,7 @@ def test_the_help_lists_every_registered_part_with_its_help():
     for p in parts.PARTS:
         assert f"``{p.name}`` ({p.help})" in field_summary(p.role), (p.role, p.name)
         assert f"{p.name} ({p.help.replace('``', '')})" in field_help(p.role)
-    mine = parts.Part("sampler", "mine", "cuboidcli.factories:uniform_sampler", None, "a test sampler")
+    mine = parts.Part("sampler", "mine", "cuboidcli.sampling:build_uniform", None, "a test sampler")
     with_mine = (*parts.PARTS, mine)
     import unittest.mock
 

@@ -1,7 +1,7 @@
 """Every default README.md states is the code's: the option tables under "Settings" (the main options of
-``cuboids fit`` and those only a room takes) against the command's options and the estimator's configs
-(FitConfig, SceneConfig), and the few defaults its prose names. A default changed in the code without the
-README, or the other way round, fails here."""
+``cuboids fit`` and those only a room takes) against the command's options and the estimator's config
+(FitConfig, with a frame's and a room's defaults), and the few defaults its prose names. A default changed
+in the code without the README, or the other way round, fails here."""
 
 from __future__ import annotations
 
@@ -13,13 +13,13 @@ import click
 import pytest
 import typer
 
-from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.scene import SceneConfig
+from cuboidcli.fitting.config import KIND_DEFAULTS, FitConfig
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 FIT, ROOM = ("option", "default", "meaning"), ("room option", "default", "meaning")
-#: Room options and the SceneConfig field each sets (the others are plain options of the fit command).
+#: Room options and the FitConfig field each sets, at a room's default (the others are plain options of the
+#: fit command).
 ROOM_FIELDS = {
     "--max-cuboids": "max_cuboids",
     "--voxel": "voxel_m",
@@ -86,9 +86,10 @@ def test_the_fit_table_states_the_commands_defaults():
 
 
 def test_the_fit_tables_defaults_are_the_estimators():
-    """The options that set FitConfig fields default to the fields' values, and the computed defaults are
-    stated as the config computes them."""
-    stated, params, config = settings(FIT), fit_params(), FitConfig()
+    """The options that set FitConfig fields default to the fields' values (a frame's and a room's, for a
+    setting whose default depends on the input), and the computed defaults are stated as the config computes
+    them."""
+    stated, params, config = settings(FIT), fit_params(), FitConfig().for_kind("frame")
     checked = 0
     for flag, default in stated.items():
         name = params[flag].name
@@ -105,6 +106,10 @@ def test_the_fit_tables_defaults_are_the_estimators():
             assert value is None and f"about {config.fit_points} points" in default
         elif name == "gravity_down":
             assert value is None and default == "estimated"
+        elif name in KIND_DEFAULTS["frame"]:  # None on the command line: the input's, a frame's first
+            frame, room = (KIND_DEFAULTS[kind][name] for kind in ("frame", "room"))
+            assert value == frame and params[flag].default is None, flag
+            assert default == f"{frame}; a room: {room}", flag
         elif isinstance(value, bool):
             assert params[flag].default is value and default.strip("`") == shown(params[flag]), flag
         else:
@@ -116,8 +121,8 @@ def test_the_fit_tables_defaults_are_the_estimators():
     assert stated["--solver"] == config.solver == "numerical"
 
 
-def test_the_room_table_states_scene_configs_defaults():
-    stated, params, scene = settings(ROOM), fit_params(), SceneConfig()
+def test_the_room_table_states_a_rooms_defaults():
+    stated, params, scene = settings(ROOM), fit_params(), FitConfig().for_kind("room")
     for flag, default in stated.items():
         assert flag in params, f"README names {flag}, which cuboids fit does not have"
         field = ROOM_FIELDS.get(flag)
@@ -137,11 +142,11 @@ def prose_claims() -> list[tuple[str, str]]:
 
     depth_scale = fit_params()["--depth-scale"].show_default
     return [
-        (f"the fitting grid has at most {FitConfig().fit_points} points", "FitConfig.fit_points"),
+        (f"the fitting grid has at most {FitConfig().for_kind('frame').fit_points} points", "KIND_DEFAULTS"),
         (f"{DEFAULT_FOV_DEG:g} degree field of view", "io.photo.DEFAULT_FOV_DEG"),
         (f"`--depth-scale` metres per unit, {depth_scale} by default", "fit --depth-scale"),
         (f"the built-in `models/{DEFAULTS['depth']}`", "weights.DEFAULTS['depth']"),
-        (f"at most {SceneConfig().fit_points:,} points remain", "SceneConfig.fit_points"),
+        (f"at most {FitConfig().for_kind('room').fit_points:,} points remain", "KIND_DEFAULTS"),
     ]
 
 

@@ -116,7 +116,7 @@ def test_a_failed_frame_is_reported_and_the_others_go_on(frames, tmp_path):
 def test_scale_out_options_need_a_folder_and_valid_values(frames, tmp_path):
     depth = str(frames / "f0.png")
     r = CliRunner().invoke(app, ["fit", "--depth", depth, "-K", K, "--workers", "2"])
-    assert r.exit_code == 2 and "fit the frames of a folder" in r.output
+    assert r.exit_code == 2 and "fit the inputs of a folder" in r.output
     r = CliRunner().invoke(app, ["fit", "--depth", str(frames), "-K", K, "--workers", "0"])
     assert r.exit_code == 2 and "--workers must be at least 1" in r.output
     r = CliRunner().invoke(app, ["fit", "--depth", str(frames), "-K", K, "--ray-address", " "])

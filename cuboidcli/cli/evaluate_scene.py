@@ -106,7 +106,7 @@ def _fitter(options: dict):
     """The configured Fitter (presets, then the given options over them) and the presets applied."""
     from cuboidcli.cli.options import fit_config
     from cuboidcli.evaluation.presets import resolve
-    from cuboidcli.folder import fitter_for
+    from cuboidcli.job import fitter_for
     from cuboidcli.weights import shipped_path
 
     config, _, applied = resolve(options["preset"])
@@ -128,7 +128,6 @@ def _fitter(options: dict):
 
 def evaluate_rooms(data: Path, options: dict) -> None:
     """Fit and score every room scan of ``data``; ``options`` are ``cuboids evaluate``'s parameters."""
-    from cuboidcli.cli.fit_scene import scene_config
     from cuboidcli.evaluation import scene_run as run
     from cuboidcli.evaluation.scene_run import SCAN_FILES
 
@@ -153,8 +152,7 @@ def evaluate_rooms(data: Path, options: dict) -> None:
         if options["limit"] < 1:
             fail(f"--limit must be at least 1 (got {options['limit']})")
         folders = folders[: options["limit"]]
-    scene = scene_config(options["max_cuboids"], options["visibility"] or "auto", None, None)
-    settings = run.SceneEvalSettings(scene, bare=options["bare"], baseline=options["baseline"])
+    settings = run.SceneEvalSettings(bare=options["bare"], baseline=options["baseline"])
     with user_errors():
         fitter, applied = _fitter(options)
         with progress_bar("{task.description}", TimeElapsedColumn(), transient=True) as bar:
@@ -173,7 +171,7 @@ def evaluate_rooms(data: Path, options: dict) -> None:
                 "command": " ".join(["cuboids", *sys.argv[1:]]),
                 "data": str(data.resolve()),
                 "presets": applied,
-                "settings": {"fit": fitter.config.to_dict(), **settings.to_dict()},
+                "settings": {"fit": fitter.config.for_kind("room").to_dict(), **settings.to_dict()},
             }
             path = run.write_scene_report(output / "scenes.json", report, provenance)
             out.print(f"wrote {path}")

@@ -1,5 +1,6 @@
 """`cuboids fit`: its options, checked and turned into a job for the library, which fits a depth map or a
-photo (:mod:`cuboidcli.cli.fit_frames`), every frame of a folder, or a room (:mod:`cuboidcli.cli.fit_scene`).
+photo, a room (a scan, a sequence), or every input of a folder: a typed request
+(:mod:`cuboidcli.cli.fit_request`) run by :mod:`cuboidcli.cli.fit_run`.
 """
 
 from __future__ import annotations
@@ -9,7 +10,15 @@ from pathlib import Path
 import typer
 
 from cuboidcli.cli.common import fail, user_errors
-from cuboidcli.cli.options import DEFAULTS, config_option, device_option, fast_option, fit_config
+from cuboidcli.cli.fit_request import FitRequest, Outputs, Run
+from cuboidcli.cli.options import (
+    DEFAULTS,
+    config_option,
+    device_option,
+    fast_option,
+    fit_config,
+    shown_default,
+)
 from cuboidcli.cli.renamed import prefer_new, renamed_option
 from cuboidcli.cli.scale_options import (
     ray_address_option,
@@ -18,7 +27,7 @@ from cuboidcli.cli.scale_options import (
     skip_existing_option,
     workers_option,
 )
-from cuboidcli.fitting.scene import SceneConfig
+from cuboidcli.load import LoadOptions
 from cuboidcli.weights import DEFAULTS as WEIGHTS
 
 
@@ -55,7 +64,7 @@ def fit(
         None, "--output", "-o", help="Output JSON (or folder for a folder of depth maps)."
     ),
     hypotheses: int = config_option("hypotheses"),
-    max_cuboids: int = config_option("max_cuboids"),
+    max_cuboids: int = config_option("max_cuboids", show_default=shown_default("max_cuboids")),
     sampler: str = config_option("sampler"),
     solver: str = config_option("solver"),
     weights: Path = typer.Option(
@@ -137,25 +146,13 @@ def fit(
     ),
     unit: str = typer.Option("m", "--unit", help="A point cloud or mesh: its unit (m, cm or mm)."),
     every: int = typer.Option(1, "--every", help="A sequence folder: fuse every n-th frame."),
-    visibility: str = typer.Option(
-        "auto",
-        "--visibility",
-        help="A room: how points count against a cuboid: views (no cuboid hides a point from its camera, "
-        "nor holds the camera; a bare cloud is seen from just outside its surfaces), inside (no observed "
-        "point inside a solid box), plain (plain inlier count); auto = views.",
-    ),
-    up: str = typer.Option(
-        None,
-        "--up",
-        help="A room: its up direction in the input's frame: z, y, -y, x or x,y,z.",
+    visibility: str = config_option("visibility"),
+    up: str = config_option(
+        "up",
         show_default="estimated: the room's axis nearest the cameras' up, y for glTF, z otherwise",
+        more="Given as z, y, -y, x or x,y,z.",
     ),
-    voxel: float = typer.Option(
-        None,
-        "--voxel",
-        help="A room: side of the voxels whose means are fitted (m).",
-        show_default=str(SceneConfig.voxel_m),
-    ),
+    voxel_m: float = config_option("voxel_m"),
     workers: int = workers_option(),
     ray: bool = ray_option(),
     ray_address: str = ray_address_option(),
@@ -170,50 +167,96 @@ def fit(
     folder (TUM, ScanNet, Redwood, or depth/ + pose/ + cameras.json) is fitted as one room, in its own
     frame, with up to 40 cuboids."""
     camera = prefer_new(camera, preset, "--preset", "--camera")
-    options = dict(locals())  # the parameters named after FitConfig fields are its settings
-    if image is not None and depth is None and image.exists() and _is_room_input(image):
-        from cuboidcli.cli.fit_scene import fit_room_command
-
-        fit_room_command(options)
-        return
-    if depth is None and image is None:
-        fail("give a depth map with --depth D.png or an RGB image (see cuboids fit --help)")
-    if depth_model_kind not in (None, "metric", "relative", "relative-inverse"):
-        fail(f"--depth-model-kind {depth_model_kind!r}: choose metric, relative or relative-inverse")
-    config = fit_config(options)
-    if solver == "onnx" and onnx is None:
-        fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
-    if image is not None and not image.exists():
-        fail(f"image file not found: {image}")
-    if image is not None and image.is_dir():
-        if depth is not None:
-            fail("IMAGE is a folder: give it without --depth (depth from the images) or use --depth FOLDER")
-        if partial_depth is not None:
-            fail("--partial-depth belongs to one image; it cannot align every image of a folder")
-    ray_at = ray_target(workers, ray, ray_address)
-    folder_input = (depth is not None and depth.is_dir()) or (depth is None and image.is_dir())
-    if (ray_at is not None or workers > 1) and not folder_input:
-        fail("--workers and --ray fit the frames of a folder: give a folder of depth maps or images")
-    from cuboidcli.cli import fit_frames
+    settings = dict(
+        hypotheses=hypotheses, max_cuboids=max_cuboids, sampler=sampler, solver=solver, seed=seed,
+        device=device, theta=theta, grid_step=grid_step, occlusion_aware=occlusion_aware, refine=refine,
+        local_fraction=local_fraction, max_batches=max_batches, align=align, gravity_down=gravity_down,
+        slab_max_m=slab_max_m, visibility=visibility, up=up, voxel_m=voxel_m,
+    )  # fmt: skip
+    depth_model_options = dict(
+        model=depth_model, kind=depth_model_kind, scale=relative_scale, shift=relative_shift,
+        partial_depth=None if partial_depth is None else str(partial_depth), camera_height_m=camera_height,
+        onnx_preset=onnx_preset, drop_edges=depth_edges,
+    )  # fmt: skip
+    scenes = dict(html=html, mjcf=mjcf, urdf=urdf, usd=usd, rrd=rrd)
+    kinds = tuple(k for k, on in dict(glb=glb, ply=ply, overlay=overlay, **scenes).items() if on)
+    outputs = Outputs(output, kinds, with_points, rerun, quiet)
+    run = Run(workers, ray_target(workers, ray, ray_address), skip_existing)
+    request = fit_request(image, depth, settings, fast, depth_model_options, intrinsics, camera, depth_scale,
+                          unit, every, weights, onnx, outputs, run)  # fmt: skip
+    from cuboidcli.cli.fit_run import run_request
 
     with user_errors():
-        job = fit_frames.frame_job(options, config)
-        stream = fit_frames.rerun_stream() if rerun else None
-        if folder_input:
-            engine = fit_frames.Engine(workers, ray_at)
-            fit_frames.fit_folder(job, depth or image, output, quiet, engine, skip_existing, stream)
-            return
-        res, written = fit_frames.fit_one(job, depth, image, output, quiet, stream)
-    if not quiet:
-        fit_frames.print_fit(res, written)
+        run_request(request)
 
 
-def _is_room_input(path: Path) -> bool:
-    """A room (a scan file, a sequence folder) or a folder of rooms, which are fitted as rooms."""
-    from cuboidcli.room_folder import is_rooms_folder
-    from cuboidcli.scene import is_scene_input
+def fit_request(
+    image: Path | None,
+    depth: Path | None,
+    settings: dict,
+    fast: bool,
+    depth_model_options: dict,
+    intrinsics: str | None,
+    camera: str | None,
+    depth_scale: float | None,
+    unit: str,
+    every: int,
+    weights: Path | None,
+    onnx: Path | None,
+    outputs: Outputs,
+    run: Run,
+) -> FitRequest:
+    """The typed request of the options: what the input is, the settings given (checked, one line and exit 2
+    for a bad value), how to read the input; an option that does not apply to it is refused."""
+    from cuboidcli.factories import DepthModelOptions
 
-    return is_scene_input(path) or is_rooms_folder(path)
+    if depth is None and image is None:
+        fail("give a depth map with --depth D.png or an RGB image (see cuboids fit --help)")
+    model_kind = depth_model_options["kind"]
+    if model_kind not in (None, "metric", "relative", "relative-inverse"):
+        fail(f"--depth-model-kind {model_kind!r}: choose metric, relative or relative-inverse")
+    given = {k: v for k, v in settings.items() if v is not None and v != getattr(DEFAULTS, k)}
+    if isinstance(given.get("up"), str):
+        from cuboidcli.io.depth import InputError
+        from cuboidcli.load.room import parse_up
+
+        try:
+            given["up"] = parse_up(given["up"])
+        except InputError as e:
+            fail(str(e))
+    config = fit_config({**given, "device": settings["device"], "fast": fast})
+    for p, what in ((image, "image file"), (depth, "depth map")):
+        if p is not None and not p.exists():
+            fail(f"{what} not found: {p}")
+    path, source, folder = _input(image, depth)
+    model_given = any(v not in (None, False) for v in depth_model_options.values())
+    model = None
+    if source == "photo" or model_given:
+        from cuboidcli.weights import depth_model_path
+
+        opts = dict(depth_model_options, model=depth_model_path(depth_model_options["model"]))
+        model = DepthModelOptions(**opts, device=config.device)
+    load = LoadOptions(intrinsics, camera, depth_scale, unit, every, model)
+    request = FitRequest(
+        path, image if depth is not None else None, source, folder, config, frozenset(given), load,
+        None if weights is None else str(weights), None if onnx is None else str(onnx), outputs, run,
+    )  # fmt: skip
+    request.check()
+    return request
+
+
+def _input(image: Path | None, depth: Path | None) -> tuple[Path, str | None, bool]:
+    """(the input, its source, whether it is a folder of such inputs)."""
+    from cuboidcli.job import is_rooms_folder
+    from cuboidcli.load.room import is_room_input
+
+    if depth is not None:
+        return depth, "depth", depth.is_dir()
+    if is_room_input(image):
+        return image, "sequence" if image.is_dir() else "scan", False
+    if image.is_dir():
+        return (image, None, True) if is_rooms_folder(image) else (image, "photo", True)
+    return image, "photo", False
 
 
 def register(app: typer.Typer) -> None:

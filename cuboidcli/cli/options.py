@@ -26,13 +26,18 @@ from rich.markup import escape
 from cuboidcli.api import Fitter
 from cuboidcli.cli.common import fail, resolve_device
 from cuboidcli.fitting import parts
-from cuboidcli.fitting.config import FitConfig, setting_error
+from cuboidcli.fitting.config import KIND_DEFAULTS, FitConfig, setting_error
 from cuboidcli.fitting.parts import SAMPLERS, SOLVERS
 
 FIELDS = tuple(f.name for f in dataclasses.fields(FitConfig))
 DEFAULTS = FitConfig()
 #: Flags whose name is not the field's (``--`` + the field name with dashes, else).
-FLAG_NAMES = {"occlusion_aware": "oai", "slab_max_m": "slab-max", "gravity_down": "gravity"}
+FLAG_NAMES = {
+    "occlusion_aware": "oai",
+    "slab_max_m": "slab-max",
+    "gravity_down": "gravity",
+    "voxel_m": "voxel",
+}
 #: ``--fast``: every hypothesis is scored on this many points first (FitConfig.prescore_points).
 FAST_PRESCORE_POINTS = 600
 #: ``--device``: the Python API's default (auto: cuda where there is one); FitConfig.device is the result.
@@ -92,8 +97,11 @@ def flags(name: str) -> str:
 
 
 def shown_default(name: str) -> str:
-    """Field ``name``'s default as the help shows it: the value, or the flag a switch is on by default."""
+    """Field ``name``'s default as the help shows it: the value, the flag a switch is on by default, or for
+    a setting whose default depends on the input, a frame's and a room's (``8; a room: 40``)."""
     value = getattr(DEFAULTS, name)
+    if value is None and name in KIND_DEFAULTS["frame"]:
+        return f"{KIND_DEFAULTS['frame'][name]}; a room: {KIND_DEFAULTS['room'][name]}"
     if isinstance(value, bool):
         on, off = flags(name).split("/")
         return (on if value else off).removeprefix("--")

@@ -15,10 +15,30 @@ import typer
 
 from cuboidcli.cli.common import console, fail
 
+#: Every old spelling that still works, with the commands that take it and its new spelling: the one list
+#: of them (docs/development.md, "Options and settings are defined once").
+RENAMED: tuple[tuple[tuple[str, ...], str, str], ...] = (
+    (("fit", "synth"), "--preset", "--camera"),
+    (("train solver", "train sampler", "train seed", "train depth", "depth_evaluate"), "--out", "--output"),
+    (("train solver", "train sampler", "train seed"), "--width", "--channels"),
+)
 
-def renamed_option(old: str, new: str, *aliases: str) -> Any:
-    """A hidden option that accepts the ``old`` spelling of ``new`` (value None when not given)."""
-    return typer.Option(None, old, *aliases, hidden=True, help=f"Deprecated spelling of {new}.")
+
+def new_spelling(old: str) -> str:
+    """The new spelling of the old option ``old`` (:data:`RENAMED`); KeyError for an option never renamed."""
+    for _, was, now in RENAMED:
+        if was == old:
+            return now
+    raise KeyError(f"{old} is not a renamed option; add it to RENAMED")
+
+
+def renamed_option(old: str, new: str | None = None, *aliases: str) -> Any:
+    """A hidden option that accepts the ``old`` spelling (value None when not given); its new spelling is
+    the one :data:`RENAMED` gives (``new``, when passed, must agree)."""
+    now = new_spelling(old)
+    if new is not None and new != now:
+        raise ValueError(f"{old} is renamed to {now} in RENAMED, not {new}")
+    return typer.Option(None, old, *aliases, hidden=True, help=f"Deprecated spelling of {now}.")
 
 
 def prefer_new(new_value: Any, old_value: Any, old: str, new: str) -> Any:

@@ -14,7 +14,7 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.gravity import Gravity
 from cuboidcli.io.depth import InputError, InputWarning
-from cuboidcli.io.result import frame_result, same_settings, saved_settings, write_result
+from cuboidcli.io.result import same_settings, saved_settings, write_result
 
 
 def saved_fit_path(save_fits_dir: Path, seed: int, name: str) -> Path:
@@ -50,19 +50,18 @@ def estimated_depth(frame, depth_model: Path | None) -> tuple[np.ndarray, float]
     """Depth from the frame's RGB image: (depth m (H, W), seconds the estimation took).
 
     The estimator is built once per process (loading it is start-up, not fitting time)."""
-    from cuboidcli.depth import estimate_depth
-    from cuboidcli.factories import DepthModelOptions, depth_estimator
+    from cuboidcli.factories import DepthModelOptions
+    from cuboidcli.load.frame import depth_from_rgb
 
     rgb = frame.rgb() if hasattr(frame, "rgb") else None
     if rgb is None:
         raise InputError(f"frame {frame.name}: --rgb needs an RGB image, and this frame has none")
-    timing: dict = {}
     try:
         opts = DepthModelOptions(None if depth_model is None else str(depth_model))
-        depth, _ = estimate_depth(depth_estimator(opts), rgb, frame.camera, timing)
-    except (ValueError, FileNotFoundError, ImportError) as e:
+        estimate = depth_from_rgb(rgb, frame.camera, opts)
+    except ValueError as e:
         raise InputError(f"frame {frame.name}: {e}") from e
-    return depth, timing["depth"]
+    return estimate.depth_m, estimate.seconds
 
 
 def fit_and_save(
@@ -80,7 +79,7 @@ def fit_and_save(
     With ``rgb`` the fit is of the depth predicted from the frame's image (``depth_m`` is unused) and
     ``timing_s["total"]`` includes the depth estimation (``timing_s["depth"]``).
     """
-    from cuboidcli.folder import fitter_for
+    from cuboidcli.job import fitter_for
 
     depth_s = None
     if rgb:
@@ -100,12 +99,14 @@ def fit_and_save(
         info.add_depth_time(depth_s)
     if save_fits_dir is not None:
         # Recorded as the evaluation asked for it: the configured names and weights, the data set's frame.
-        result = frame_result(
-            frame.camera,
+        from cuboidcli.load import Input
+        from cuboidcli.result import result_record
+
+        result = result_record(
+            Input("depth", frame.camera, dataset_input(frame)),
             fit.cuboids,
             info,
-            config,
-            dataset_input(frame),
+            config.for_kind("frame"),
             config.solver,
             config.sampler,
             _weights_setting(weights_dir),
@@ -117,4 +118,4 @@ def fit_and_save(
 def reusable_fit(path: Path, config: FitConfig, weights_dir: Path | None) -> bool:
     """A saved fit that a rerun may score instead of fitting: valid "cuboids/1", the same settings."""
     saved = saved_settings(path, [path])
-    return saved is not None and same_settings(saved, config, _weights_setting(weights_dir))
+    return saved is not None and same_settings(saved, config.for_kind("frame"), _weights_setting(weights_dir))

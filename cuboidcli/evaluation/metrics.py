@@ -65,6 +65,7 @@ from cuboidcli.evaluation.object_recall import (
 )
 from cuboidcli.evaluation.shape import Reference, ShapeMetrics, shape_metrics
 from cuboidcli.evaluation.shape_summary import shape_summary
+from cuboidcli.fitting.box import score_params
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.geometry.gravity import Gravity
 
@@ -226,7 +227,7 @@ def frame_metrics(
     from cuboidcli.fitting.assign import assign_points
 
     cfg = config or FitConfig()
-    labels = assign_points(points, cuboids, cfg.tau_sq_m2, cfg.beta, cfg.tau_c, cfg.occlusion_aware)
+    labels = assign_points(points, cuboids, score_params(cfg))
     if instances is not None:
         m.objects = object_counts(labels, instances[valid], len(cuboids))
     if shape:

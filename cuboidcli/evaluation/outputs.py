@@ -80,7 +80,7 @@ def write_outputs(
         "schema": "cuboids-eval/1",
         "version": __version__,
         **(meta or {}),
-        "config": report.config.to_dict(),
+        "config": report.config.to_dict("frame"),
         "auc_cm": list(report.settings.auc_cm),
         "seeds": report.seeds,
         "summary": {k: {"mean": m, "std": s} for k, (m, s) in report.summary.items()},

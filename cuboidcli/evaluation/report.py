@@ -135,7 +135,7 @@ def provenance(report: EvalReport, meta: dict) -> str:
         for k, v in items
         if v not in (None, "")
     )
-    config = html.escape(json.dumps(report.config.to_dict(), indent=1, default=str))
+    config = html.escape(json.dumps(report.config.to_dict("frame"), indent=1, default=str))
     weights = html.escape(json.dumps(report.weights, indent=1)) if report.weights else ""
     return (
         f'<table id="provenance">{rows}</table>\n'

@@ -343,6 +343,8 @@ def evaluate(
         raise InputError("no frames to evaluate (check --split, --frames and --limit)")
     from cuboidcli.weights import check_weights_option, default_weights_dir
 
+    config = config.for_kind("frame")  # the frames' defaults for what was left unset (parsimony's K)
+
     if settings.fits_dir is None:
         check_weights_option(settings.weights_dir, config.solver, config.sampler)
     if settings.weights_dir is None:  # the shipped bundle that matches the input and the solver

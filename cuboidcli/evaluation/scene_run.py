@@ -4,7 +4,7 @@ A room scan is a folder in the plain sequence layout with its ground truth, as
 :func:`cuboidcli.synth.scan.write_room_scan` writes it (``cuboids synth --views N`` writes
 ``OUT/scene_0000/`` ...): ``gt.json`` (world-frame cuboids, z up, metres) and ``truth_points.npz``
 (evaluation points with instance ids). Every scan is fitted as ``cuboids fit FOLDER`` fits it
-(:meth:`cuboidcli.api.Fitter.fit_scene`), or, with ``bare``, its fused points are fitted as a bare cloud
+(:meth:`cuboidcli.api.Fitter.fit`), or, with ``bare``, its fused points are fitted as a bare cloud
 without the cameras; optionally the Open3D planes + clusters baseline (:mod:`.baseline`) is fitted to the
 same fused points. Each fit is scored by :func:`.scene.scene_metrics` and the rows of a method are
 aggregated over the rooms by :func:`.scene.aggregate_scenes`.
@@ -16,13 +16,12 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from cuboidcli.evaluation.scene import aggregate_scenes, scene_metrics
-from cuboidcli.fitting.scene import SceneConfig
 
 #: The files that make a folder a room scan with ground truth.
 SCAN_FILES = ("gt.json", "truth_points.npz")
@@ -62,16 +61,15 @@ def scene_folders(root: str | os.PathLike) -> list[Path]:
 
 @dataclass(frozen=True)
 class SceneEvalSettings:
-    """How the rooms are fitted: ``scene`` the room settings (visibility, voxel, max_cuboids), ``bare``
-    fits the fused points without their cameras (as a point cloud file would be), ``baseline`` also
-    scores the Open3D planes + clusters baseline."""
+    """How the rooms are fitted (the room settings, visibility, voxel, max_cuboids, are the Fitter's):
+    ``bare`` fits the fused points without their cameras (as a point cloud file would be), ``baseline``
+    also scores the Open3D planes + clusters baseline."""
 
-    scene: SceneConfig = field(default_factory=SceneConfig)
     bare: bool = False
     baseline: bool = False
 
     def to_dict(self) -> dict:
-        return {"scene": self.scene.to_dict(), "bare": self.bare, "baseline": self.baseline}
+        return {"bare": self.bare, "baseline": self.baseline}
 
 
 @dataclass
@@ -90,26 +88,17 @@ class SceneEvalReport:
 
 
 def _fit(folder: Path, fitter, settings: SceneEvalSettings):
-    """Fit one scan: (fused points (N, 3), cuboids, object boxes, visibility used, seconds of the fit
-    alone)."""
-    if not settings.bare:
-        t = time.perf_counter()
-        res = fitter.fit_scene(folder, scene=settings.scene)
-        # reading and fusing the frames is the same for every method: leave it out of the fit's time
-        seconds = time.perf_counter() - t - res.input.load_seconds
-        return res.input.cloud.points, res.cuboids, res.objects, res.info.visibility, seconds
-    from cuboidcli.fitting.scene import fit_scene
-    from cuboidcli.scene import load_scene
+    """Fit one scan through :meth:`~cuboidcli.api.Fitter.fit`: (fused points (N, 3), cuboids, object boxes,
+    visibility used, seconds of the fit alone)."""
+    from cuboidcli.load import load
 
-    cloud = load_scene(folder).cloud
+    inp = load(folder)
     t = time.perf_counter()
-    # the fused points alone, as a .ply of them would be read: no cameras, no up hint
-    cuboids, info = fit_scene(
-        cloud.points, fitter.config, settings.scene, solver=fitter.solver, sampler=fitter.sampler,
-        viewpoints=None,
-    )  # fmt: skip
+    # reading and fusing the frames is the same for every method: left out of the fit's time; with
+    # ``bare`` the fused points alone, as a .ply of them would be read: no cameras, no up hint
+    res = fitter.fit(inp.points) if settings.bare else fitter.fit_input(inp)
     seconds = time.perf_counter() - t
-    return cloud.points, cuboids, [o.box for o in info.objects], info.visibility, seconds
+    return inp.points, res.cuboids, res.objects, res.info.visibility, seconds
 
 
 def _scan_up(folder: Path) -> np.ndarray:
@@ -175,7 +164,7 @@ def evaluate_scenes(
     """Fit and score every room scan of ``folders`` in order (:func:`evaluate_scene`) and aggregate each
     method over the rooms. ``progress(done, total, what)`` before each step and once at the end."""
     rows: list[dict] = []
-    visibility = settings.scene.visibility
+    visibility = fitter.config.visibility
     for i, folder in enumerate(folders):
 
         def step(what: str, done: int = i, name: str = folder.name) -> None:

@@ -1,21 +1,31 @@
 """The files ``cuboids fit`` writes, named here once: the result JSON of an input and the folder of a
 folder's results when ``-o`` is not given, and beside a result ``<stem>.json`` the images, meshes and scene
-files asked for (:func:`output_paths`, in the order they are written; the JSON comes last)."""
+files asked for (:func:`output_paths`, in the order they are written; the JSON comes last). The names of
+the outputs come from the table of output kinds, :data:`cuboidcli.export.outputs.OUTPUTS`.
+"""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
-#: Scene files other tools open, by kind: the file name beside a result (``<stem>`` + this) that ``cuboids
-#: fit --KIND`` writes, and the module and function that write one (imported when used: each needs an
-#: optional extra).
-SCENES: dict[str, tuple[str, str, str]] = {
-    "html": (".html", "cuboidcli.export.html", "write_html"),
-    "mjcf": ("_mjcf.xml", "cuboidcli.export.mjcf", "write_mjcf"),
-    "urdf": (".urdf", "cuboidcli.export.mjcf", "write_urdf"),
-    "usd": (".usda", "cuboidcli.export.usd", "write_usd"),
-    "rrd": (".rrd", "cuboidcli.export.rerun", "write_rrd"),
-}
+from cuboidcli.export.outputs import OUTPUTS, SCENES, in_table_order, kind_paths, named_after, result_stem
+
+__all__ = [
+    "FOLDER_RECORDING",
+    "OUTPUTS",
+    "SCENES",
+    "frame_overlay_path",
+    "image_paths",
+    "output_files",
+    "output_paths",
+    "ply_paths",
+    "result_name",
+    "result_stem",
+    "results_folder",
+    "scene_path",
+]
+
 #: A folder's frames in one rerun recording (``cuboids fit DIR --rrd``), in the folder of results.
 FOLDER_RECORDING = "cuboids.rrd"
 
@@ -32,41 +42,25 @@ def results_folder(folder: str | Path) -> Path:
     return Path(f"{Path(folder).name}_cuboids")
 
 
-def result_stem(out_json: str | Path) -> Path:
-    """``out/scene`` of ``out/scene.json``: what the files beside the result are named from."""
-    p = Path(out_json)
-    return p.with_name(p.name.removesuffix(".json"))
-
-
 def scene_path(stem: str | Path, kind: str) -> Path:
     """Where ``cuboids fit --KIND`` writes scene ``kind`` of the result ``<stem>.json``."""
     return Path(f"{stem}{SCENES[kind][0]}")
 
 
-def _sibling(path: Path, drop_suffix: str, name: str, ext: str) -> Path:
-    """``dir/<stem>_<name><ext>`` where a trailing ``_<drop_suffix>`` is removed from the stem first."""
-    stem = path.stem
-    if stem.endswith(f"_{drop_suffix}"):
-        stem = stem[: -len(drop_suffix) - 1]
-    return path.with_name(f"{stem}_{name}{ext}")
-
-
 def image_paths(overlay_path: str | Path) -> dict[str, Path]:
     """Where the images that accompany an overlay go: ``x.png`` -> x_labels.png, x_labels_color.png,
     x_panel.png (and ``x_overlay.png`` -> x_labels.png, ...)."""
-    p = Path(overlay_path)
-    return {
-        "overlay": p,
-        "labels": _sibling(p, "overlay", "labels", ".png"),
-        "labels_color": _sibling(p, "overlay", "labels_color", ".png"),
-        "panel": _sibling(p, "overlay", "panel", ".png"),
-    }
+    return named_after("overlay", overlay_path)
 
 
 def ply_paths(points_path: str | Path) -> dict[str, Path]:
     """``x.ply`` holds the points and x_cuboids.ply the meshes (``x_points.ply`` -> x_cuboids.ply)."""
-    p = Path(points_path)
-    return {"points_ply": p, "cuboids_ply": _sibling(p, "points", "cuboids", ".ply")}
+    return named_after("ply", points_path)
+
+
+def _asked(glb: bool, ply: bool, obj: bool, overlay: bool, scenes: Iterable[str], kinds) -> list[str]:
+    flags = {"glb": glb, "ply": ply, "obj": obj, "overlay": overlay}
+    return in_table_order([*(k for k, on in flags.items() if on), *scenes, *(kinds or ())])
 
 
 def output_paths(
@@ -77,34 +71,39 @@ def output_paths(
     obj: bool = False,
     overlay: bool = False,
     scenes: tuple[str, ...] = (),
+    kinds: Iterable[str] | None = None,
+    views: list | None = None,
 ) -> dict[str, Path]:
-    """The files beside the result ``<stem>.json`` for the outputs asked for, by kind, in the order they are
+    """The files beside the result ``<stem>.json`` for the outputs asked for (the flags, ``scenes`` and
+    ``kinds``, keys of :data:`~cuboidcli.export.outputs.OUTPUTS`), by file key, in the order they are
     written: ``glb`` <stem>.glb; ``ply`` <stem>_points.ply and <stem>_cuboids.ply; ``obj`` <stem>.obj and
-    <stem>.mtl; ``overlay`` <stem>_overlay.png, _labels.png, _labels_color.png, _panel.png; each kind of
-    ``scenes`` (:data:`SCENES`) at :func:`scene_path`."""
+    <stem>.mtl; ``overlay`` <stem>_overlay.png, _labels.png, _labels_color.png, _panel.png, or for a room
+    (its sequence frames ``views`` given) <stem>_overlay_<frame>.png on each frame it is drawn on; each
+    scene kind at :func:`scene_path`."""
     paths: dict[str, Path] = {}
-    if glb:
-        paths["glb"] = Path(f"{stem}.glb")
-    if ply:
-        paths.update(ply_paths(f"{stem}_points.ply"))
-    if obj:
-        paths.update(obj=Path(f"{stem}.obj"), mtl=Path(f"{stem}.mtl"))
-    if overlay:
-        paths.update(image_paths(f"{stem}_overlay.png"))
-    for kind in scenes:
-        paths[kind] = scene_path(stem, kind)
+    for kind in _asked(glb, ply, obj, overlay, scenes, kinds):
+        paths.update(kind_paths(kind, stem, views=views))
     return paths
 
 
 def frame_overlay_path(stem: str | Path, frame: str) -> Path:
     """A room's overlay drawn on its sequence's frame ``frame``, beside the result ``<stem>.json``."""
-    return Path(f"{stem}_overlay_{frame}.png")
+    return Path(f"{stem}{OUTPUTS['overlay'].view_file.format(frame=frame)}")
 
 
 def output_files(
-    out_json: str | Path, *, glb: bool, ply: bool, overlay: bool, scenes: tuple[str, ...]
+    out_json: str | Path,
+    *,
+    glb: bool = False,
+    ply: bool = False,
+    overlay: bool = False,
+    scenes: tuple[str, ...] = (),
+    kinds: Iterable[str] | None = None,
+    views: list | None = None,
 ) -> list[Path]:
-    """Every file of a complete result ``out_json`` with these outputs, the JSON last (it is written last,
-    so where it exists the others do)."""
-    extra = output_paths(result_stem(out_json), glb=glb, ply=ply, overlay=overlay, scenes=scenes)
+    """Every file of a complete result ``out_json`` with these outputs (as :func:`output_paths`), the JSON
+    last (it is written last, so where it exists the others do)."""
+    extra = output_paths(
+        result_stem(out_json), glb=glb, ply=ply, overlay=overlay, scenes=scenes, kinds=kinds, views=views
+    )
     return [*extra.values(), Path(out_json)]

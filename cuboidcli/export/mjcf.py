@@ -69,9 +69,11 @@ def scene_spec(result: FitResult):
     return spec
 
 
-def write_mjcf(result: FitResult, path: str | os.PathLike, *, depth_m=None, rgb=None) -> Path:
-    """The MuJoCo scene of ``result`` as MJCF XML, atomically (``depth_m``/``rgb`` are not used: a
-    simulator scene holds the boxes). The spec is compiled first, so a file that MuJoCo would refuse is
+def write_mjcf(
+    result: FitResult, path: str | os.PathLike, *, depth_m=None, rgb=None, points=None, point_colors=None
+) -> Path:
+    """The MuJoCo scene of ``result`` as MJCF XML, atomically (the input images and points are not used:
+    a simulator scene holds the boxes). The spec is compiled first, so a file that MuJoCo would refuse is
     never written. ImportError naming the extra without MuJoCo; ValueError for a zero-size cuboid."""
     spec = scene_spec(result)
     spec.compile()
@@ -119,6 +121,9 @@ def urdf_text(result: FitResult) -> str:
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding="unicode") + "\n"
 
 
-def write_urdf(result: FitResult, path: str | os.PathLike, *, depth_m=None, rgb=None) -> Path:
-    """The URDF of ``result``, atomically (``depth_m``/``rgb`` unused). ValueError for a zero-size cuboid."""
+def write_urdf(
+    result: FitResult, path: str | os.PathLike, *, depth_m=None, rgb=None, points=None, point_colors=None
+) -> Path:
+    """The URDF of ``result``, atomically (the input images and points unused). ValueError for a
+    zero-size cuboid."""
     return atomic_write_text(path, urdf_text(result))

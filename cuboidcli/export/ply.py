@@ -54,12 +54,12 @@ def assign_labels(points: np.ndarray, cuboids: list[Cuboid], settings: dict | No
     result's resolved FitConfig) when present, so that the colours match what the fit counted as inliers.
     """
     from cuboidcli.fitting.assign import assign_points
+    from cuboidcli.fitting.scoring import ScoreParams
 
     if len(cuboids) == 0 or len(points) == 0:
         return np.full(len(points), -1, dtype=np.int32)
-    s = settings or {}
-    kw = {k: s[k] for k in ("tau_sq_m2", "beta", "tau_c_sq_m2", "occlusion_aware") if s.get(k) is not None}
-    return np.asarray(assign_points(np.asarray(points, dtype=np.float64), cuboids, **kw), dtype=np.int32)
+    sp = ScoreParams.of(settings or {})
+    return np.asarray(assign_points(np.asarray(points, dtype=np.float64), cuboids, sp), dtype=np.int32)
 
 
 #: The vertex element's properties, in the order of :func:`_vertex_records`' fields.

@@ -126,8 +126,11 @@ def write_rrd_frames(frames: Iterable[tuple], path: str | os.PathLike) -> Path:
     return path
 
 
-def write_rrd(result: FitResult, path: str | os.PathLike, *, depth_m=None, rgb=None) -> Path:
-    """The recording of one result (frame 0) as an ``.rrd`` file."""
+def write_rrd(
+    result: FitResult, path: str | os.PathLike, *, depth_m=None, rgb=None, points=None, point_colors=None
+) -> Path:
+    """The recording of one frame's result (frame 0) as an ``.rrd`` file (its depth map gives the points;
+    ``points``/``point_colors``, a room's, are not used)."""
     return write_rrd_frames([(result, depth_m, rgb)], path)
 
 

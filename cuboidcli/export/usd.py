@@ -70,10 +70,12 @@ def build_stage(result: FitResult, path: str):
     return stage
 
 
-def write_usd(result: FitResult, path: str | os.PathLike, *, depth_m=None, rgb=None) -> Path:
+def write_usd(
+    result: FitResult, path: str | os.PathLike, *, depth_m=None, rgb=None, points=None, point_colors=None
+) -> Path:
     """The USD stage of ``result`` at ``path`` (.usda, .usdc or .usd), written to a temporary file beside
-    it and moved into place (``depth_m``/``rgb`` unused). ImportError naming the extra without usd-core;
-    ValueError for another ending or a zero-size cuboid."""
+    it and moved into place (the input images and points unused). ImportError naming the extra without
+    usd-core; ValueError for another ending or a zero-size cuboid."""
     path = Path(path)
     if path.suffix.lower() not in USD_SUFFIXES:
         raise ValueError(f"a USD stage is written to {', '.join(USD_SUFFIXES)}, not {path.name}")

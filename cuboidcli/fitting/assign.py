@@ -17,17 +17,14 @@ OCCLUDED = -2
 def assign_points(
     points: np.ndarray | torch.Tensor,
     cuboids: list[Cuboid],
-    tau_sq_m2: float = 0.004,
-    beta: float = 5.0,
-    tau_c_sq_m2: float | None = None,
-    occlusion_aware: bool = True,
+    sp: ScoreParams | None = None,
     backend: ScoringBackend | None = None,
 ) -> np.ndarray:
     """Labels (N,) int32 for points (N, 3) in metres (an array, or a tensor on any device).
 
     -2 where f_OAI(y, M) < 0 (the point is hidden behind a cuboid side it does not lie on), otherwise the
     index of the cuboid with the highest inlier value if that value is >= ``INLIER_CUT`` (0.5: d^2 <= tau),
-    else -1.
+    else -1. ``sp``: the inlier function's parameters (None: the defaults, the paper's).
     The values come from ``backend`` (None: the default backend of the points' device, numba on the CPU).
     """
     pts = torch.as_tensor(points, dtype=torch.float64).reshape(-1, 3)
@@ -35,12 +32,11 @@ def assign_points(
     if not cuboids or pts.shape[0] == 0:
         return labels
     backend = backend or backend_for("auto", pts.device)
-    tau_c = 2.0 * tau_sq_m2 if tau_c_sq_m2 is None else tau_c_sq_m2
+    sp = sp or ScoreParams()
     boxes = (
         torch.from_numpy(np.stack([getattr(b, name) for b in cuboids]).astype(np.float64)).to(pts.device)
         for name in ("center", "half_size", "rotation")
     )
-    sp = ScoreParams(tau_sq_m2, beta, tau_c, occlusion_aware)
     vals = backend.values(pts, *boxes, sp).cpu().numpy()  # (M, N)
     lo = vals.min(0)
     best = vals.argmax(0)

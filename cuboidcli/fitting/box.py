@@ -148,7 +148,7 @@ class StepContext:
 
 def score_params(config: FitConfig) -> ScoreParams:
     """The inlier function's parameters of ``config``."""
-    return ScoreParams(config.tau_sq_m2, config.beta, config.tau_c, config.occlusion_aware)
+    return ScoreParams.of(config)
 
 
 def values_one(pts, c, a, R, sp: ScoreParams, backend: ScoringBackend | None = None) -> Tensor:

@@ -7,9 +7,11 @@ loads (:mod:`cuboidcli.weights`), the Python API and the command line (their cho
 
 A part is built by its builder, named as ``"module:function"`` and imported only when the part is first
 built: the estimator (this package) knows the parts by their protocols alone and imports none of them.
-Every builder takes one :class:`BuildInputs` and returns the sampler (:class:`cuboidcli.sampling.Sampler`)
-or the solver (:class:`cuboidcli.solvers.base.CuboidSolver`). Adding a part is its module, with such a
-builder, and its line here.
+Every builder lives in the module of its part (``cuboidcli.solvers.numerical:build``), takes one
+:class:`BuildInputs` and returns the sampler (:class:`cuboidcli.sampling.Sampler`) or the solver
+(:class:`cuboidcli.solvers.base.CuboidSolver`). The part modules lie below this package, so a builder reads
+its inputs by attribute and never imports them. Adding a part is its module, with such a builder, and its
+line here.
 """
 
 from __future__ import annotations
@@ -66,19 +68,19 @@ class Part:
 
 #: Every sampler and solver, in the order the command line lists them.
 PARTS: tuple[Part, ...] = (
-    Part("sampler", "sequential", "cuboidcli.factories:sequential_sampler", None,
+    Part("sampler", "sequential", "cuboidcli.sampling:build_sequential", None,
          "1 - max(state, 0), Sequential RANSAC: points already explained are drawn less"),
-    Part("sampler", "learned", "cuboidcli.factories:learned_sampler", "sampler",
+    Part("sampler", "learned", "cuboidcli.sampling.learned:build", "sampler",
          "the sampling-weight network, Sec. 3.2.1"),
-    Part("sampler", "local", "cuboidcli.factories:local_sampler", None,
+    Part("sampler", "local", "cuboidcli.sampling:build_local", None,
          "sequential with every set localised"),
-    Part("sampler", "uniform", "cuboidcli.factories:uniform_sampler", None,
+    Part("sampler", "uniform", "cuboidcli.sampling:build_uniform", None,
          "every valid point equally likely"),
-    Part("solver", "numerical", "cuboidcli.factories:numerical_solver", None,
+    Part("solver", "numerical", "cuboidcli.solvers.numerical:build", None,
          "PCA + Adam"),
-    Part("solver", "neural", "cuboidcli.factories:neural_solver", "solver",
+    Part("solver", "neural", "cuboidcli.solvers.neural:build", "solver",
          "the regression network"),
-    Part("solver", "onnx", "cuboidcli.factories:onnx_solver", None,
+    Part("solver", "onnx", "cuboidcli.solvers.onnx:build", None,
          "the neural solver exported with ``cuboids export --onnx``"),
 )  # fmt: skip
 

@@ -1,8 +1,10 @@
 """The estimator (paper Sec. 3.2, Fig. 3): sample minimal sets -> solve -> score -> select, one cuboid
 per step, until the best hypothesis no longer raises the occlusion-aware inlier count by Theta.
 
-Entry points: :func:`fit_depth` (a depth map and its camera) and :func:`fit_points` (prepared points).
-Both take a built solver (:class:`~cuboidcli.solvers.base.CuboidSolver`) and sampler
+The estimator takes one :class:`~cuboidcli.fitting.fit_input.FitInput`, a frame's or a room's:
+:func:`estimate` runs the sequential loop (:func:`fit_points`), names each cuboid's kind and labels the
+points; :func:`fit_depth` and :func:`fit_room` prepare the input first (a depth map and its camera, a
+room's points). All take a built solver (:class:`~cuboidcli.solvers.base.CuboidSolver`) and sampler
 (:class:`~cuboidcli.sampling.Sampler`) and return ``(cuboids, FitInfo)``; building them by name, with
 their weights, is :mod:`cuboidcli.factories`' work.
 """
@@ -18,14 +20,19 @@ import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.align import Alignment, align_winner
-from cuboidcli.fitting.backend import NumbaBackend, ScoringBackend, backend_for
+from cuboidcli.fitting.align import align_winner
+from cuboidcli.fitting.assign import OCCLUDED, assign_points
+from cuboidcli.fitting.backend import NumbaBackend, backend_for
 from cuboidcli.fitting.box import Scored, StepContext, score_params
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.prepare import PreparedPoints, grid_assignment, prepare_points, resolve_alignment
+from cuboidcli.fitting.fit_input import FitInput
+from cuboidcli.fitting.objects import SceneObject, group_objects
+from cuboidcli.fitting.prepare import frame_input, grid_assignment
+from cuboidcli.fitting.room import low_walls_are_furniture, room_input
 from cuboidcli.fitting.search import gain_upper_bound, search_step
 from cuboidcli.fitting.shell import cuboid_kind
 from cuboidcli.fitting.winner import refine_winner
+from cuboidcli.geometry.cloud import RoomUp
 from cuboidcli.geometry.gravity import Gravity
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.sampling import Sampler, SamplingContext
@@ -37,7 +44,7 @@ ProgressFn = Callable[[int, int, float], None]
 
 @dataclass
 class FitInfo:
-    """What happened while fitting one frame."""
+    """What happened while fitting one frame or room."""
 
     gains: list[float] = field(default_factory=list)
     """Inlier-count gain of each selected cuboid, in selection order."""
@@ -72,6 +79,25 @@ class FitInfo:
     edges turned upright) or "free" (an aligned box fitted much worse)."""
     warnings: list[str] = field(default_factory=list)
     """Things the user should know about this fit (one line each)."""
+    kind: str = "frame"
+    """``frame`` or ``room``: the input's kind."""
+    labels: np.ndarray | None = None
+    """(N,) int32 per fitting point: k >= 0 inlier of cuboid k, -1 none, -2 hidden by or inside a cuboid."""
+    fit_points: np.ndarray | None = None
+    """(N, 3) float64 the fitting points (a room's voxel means, in scoring order)."""
+    room_up: RoomUp | None = None
+    """A room's up direction and axes."""
+    voxel_m: float | None = None
+    """A room: the side of the voxels fitted."""
+    visibility: str | None = None
+    """A room: the scoring kernels' mode (views, inside, plain)."""
+    viewpoint: np.ndarray | None = None
+    """A room: (3,) where its shell was seen from."""
+    point_labels: np.ndarray | None = None
+    """A room: (M,) int32 the label of each input point (that of its voxel's fitting point)."""
+    objects: list[SceneObject] = field(default_factory=list)
+    """A room's whole objects (furniture with its legs, points no cuboid explains), largest first
+    (:func:`cuboidcli.fitting.objects.group_objects`)."""
 
     def add_depth_time(self, seconds: float) -> None:
         """Count a depth estimation from RGB as part of the frame's fitting time: stage "depth" (first) and
@@ -105,20 +131,20 @@ def ensure_compiled(solver: CuboidSolver | None = None, sampler: Sampler | None 
 
 
 def fit_points(
-    prep: PreparedPoints,
+    prep: FitInput,
     config: FitConfig,
     solver: CuboidSolver,
     sampler: Sampler,
     progress: ProgressFn | None = None,
     timing: dict | None = None,
-    alignment: Alignment | None = None,
-    backend: ScoringBackend | None = None,
 ) -> tuple[list[Cuboid], FitInfo]:
     """Sequential robust fitting on prepared points (Sec. 3.2). ``timing`` collects per-stage seconds;
-    ``alignment`` constrains the orientation of the selected cuboids (None = free). The scoring and
-    refinement backend is chosen here, once, from ``config.backend`` and the points' device
-    (ValueError for "numba" on a GPU), unless a ``backend`` is given (a room's, which knows how its
-    points were seen)."""
+    ``prep.alignment`` constrains the orientation of the selected cuboids (None = free). The scoring and
+    refinement backend is the input's (a room's, which knows how its points were seen), else chosen here,
+    once, from ``config.backend`` and the points' device (ValueError for "numba" on a GPU)."""
+    config = config.for_kind(prep.kind)
+    alignment = prep.alignment
+    grid = prep.grid
     timing = {} if timing is None else timing
     for k in ("sample", "solve", "score", "update"):
         timing.setdefault(k, 0.0)
@@ -127,13 +153,14 @@ def fit_points(
     info = FitInfo(
         theta=config.theta_for(n),
         n_points=n,
-        grid_step=prep.grid_step,
+        grid_step=0 if grid is None else grid.step,
         align="free" if alignment is None else alignment.mode,
+        kind=prep.kind,
     )
     sp = score_params(config)
-    backend = backend or backend_for(config.backend, pts.device)
-    if prep.cells is not None:
-        backend.bind_cells(pts, prep.cells)
+    backend = prep.backend or backend_for(config.backend, pts.device)
+    if grid is not None:
+        backend.bind_cells(pts, grid.cells)
     gen = torch.Generator().manual_seed(config.seed)
     state = torch.zeros(n, dtype=torch.float64, device=pts.device)
     cuboids: list[Cuboid] = []
@@ -148,12 +175,12 @@ def fit_points(
         info.iterations += 1
         sampling = SamplingContext(
             pts,
-            prep.grid_index,
-            prep.grid_shape,
-            prep.depth_grid,
+            None if grid is None else grid.index,
+            None if grid is None else grid.shape,
+            None if grid is None else grid.depth,
             state.float(),
             len(cuboids),
-            prep.focal_cells,
+            None if grid is None else grid.focal_cells,
             prep.space,
         )
         if not gain_upper_bound(state) > info.theta:  # no hypothesis can gain Theta: stop without drawing
@@ -194,6 +221,56 @@ def fit_points(
     return cuboids, info
 
 
+def estimate(
+    inp: FitInput,
+    config: FitConfig,
+    *,
+    solver: CuboidSolver,
+    sampler: Sampler,
+    progress: ProgressFn | None = None,
+) -> tuple[list[Cuboid], FitInfo]:
+    """The estimator on a prepared input, a frame's or a room's: the sequential loop (:func:`fit_points`),
+    then each cuboid's kind (floor, wall, ceiling, object: :func:`~cuboidcli.fitting.shell.cuboid_kind`
+    seen from the input's viewpoint), the label of every fitting point and, for a room, its whole objects.
+
+    Returns the cuboids (in selection order, each with its ``kind`` and ``inlier_gain``) and a FitInfo.
+    Deterministic for ``config.seed``."""
+    config = config.for_kind(inp.kind)
+    if inp.kind == "room" and getattr(sampler, "name", "") == "learned":
+        raise ValueError("the learned sampler weighs the pixels of a depth map; fit a room with sequential")
+    timing = dict(inp.timing_s)
+    cuboids, info = fit_points(inp, config, solver, sampler, progress, timing)
+    info.gravity = inp.gravity
+    info.warnings = [*inp.warnings, *info.warnings]
+    points = inp.points.double().cpu().numpy()
+    for c in cuboids:
+        c.kind = cuboid_kind(points, c, inp.down, inp.viewpoint)
+    room = inp.room
+    if room is not None:
+        low_walls_are_furniture(cuboids, points, room.up.up)
+    timing["total"] = time.perf_counter() - inp.started
+    t = time.perf_counter()
+    backend = inp.backend or backend_for(config.backend, inp.points.device)
+    labels = assign_points(inp.points, cuboids, score_params(config), backend)
+    if room is None:
+        if info.state is not None and len(cuboids):
+            labels[info.state < 0] = OCCLUDED
+        info.assignment = grid_assignment(inp, labels)
+    timing["assign"] = time.perf_counter() - t
+    info.labels = labels
+    if room is not None:
+        in_order = np.empty_like(labels)
+        in_order[room.order] = labels
+        info.point_labels = in_order[room.inverse]
+        t = time.perf_counter()
+        info.objects = group_objects(points, labels, cuboids, room.up.up, room.voxel_m)
+        timing["objects"] = time.perf_counter() - t
+        info.fit_points, info.room_up, info.voxel_m = points, room.up, room.voxel_m
+        info.visibility, info.viewpoint = room.visibility, inp.viewpoint
+    info.timing_s = {k: round(v, 6) for k, v in timing.items()}
+    return cuboids, info
+
+
 def fit_depth(
     depth_m: np.ndarray,
     camera: Camera,
@@ -205,34 +282,36 @@ def fit_depth(
 ) -> tuple[list[Cuboid], FitInfo]:
     """Fit cuboids to a depth map (H, W) in metres (0/NaN/inf = missing) seen by ``camera``, with a built
     ``solver`` and ``sampler`` (:mod:`cuboidcli.factories` builds them by name; :class:`cuboidcli.api.Fitter`
-    does both).
-
-    Returns the selected cuboids (in selection order, each with its ``inlier_gain``) and a FitInfo.
-    Deterministic for a given ``config.seed``.
-    """
-    config = config or FitConfig()
-    device = config.device
-    if device == "cpu":
+    does both): :func:`~cuboidcli.fitting.prepare.frame_input`, then :func:`estimate`."""
+    config = (config or FitConfig()).for_kind("frame")
+    if config.device == "cpu":
         ensure_compiled(solver, sampler)
-    t0 = time.perf_counter()
-    prep = prepare_points(depth_m, camera, config.step_for(*depth_m.shape), device)
-    timing = {"prepare": time.perf_counter() - t0}
-    t = time.perf_counter()
-    gravity, alignment, warning = resolve_alignment(prep, config)
-    if config.align != "free" or config.gravity_down is not None:
-        timing["gravity"] = time.perf_counter() - t
-    cuboids, info = fit_points(prep, config, solver, sampler, progress, timing, alignment)
-    info.gravity = gravity
-    # What each box is (floor, wall, ceiling, object); without gravity the camera's y axis stands for down.
-    down = gravity.down if gravity is not None else np.array([0.0, 1.0, 0.0])
-    points = prep.points.double().cpu().numpy()
-    for c in cuboids:
-        c.kind = cuboid_kind(points, c, np.asarray(down, dtype=np.float64))
-    if warning:
-        info.warnings.append(warning)
-    timing["total"] = time.perf_counter() - t0
-    t = time.perf_counter()
-    info.assignment = grid_assignment(prep, info.state, cuboids, config)
-    timing["assign"] = time.perf_counter() - t
-    info.timing_s = {k: round(v, 6) for k, v in timing.items()}
-    return cuboids, info
+    inp = frame_input(depth_m, camera, config)
+    return estimate(inp, config, solver=solver, sampler=sampler, progress=progress)
+
+
+def fit_room(
+    points: np.ndarray,
+    config: FitConfig | None = None,
+    *,
+    solver: CuboidSolver,
+    sampler: Sampler,
+    viewpoints: np.ndarray | None = None,
+    up_hint: np.ndarray | None = None,
+    progress: ProgressFn | None = None,
+) -> tuple[list[Cuboid], FitInfo]:
+    """Fit a room given as points (N, 3), metres, in its own world frame (``viewpoints`` (N, 3): the camera
+    that saw each point, None for a bare cloud; ``up_hint`` (3,): the direction the input calls up):
+    :func:`~cuboidcli.fitting.room.room_input`, then :func:`estimate`."""
+    config = (config or FitConfig()).for_kind("room")
+    warm_up_room(solver, sampler)
+    inp = room_input(points, config, viewpoints, up_hint)
+    return estimate(inp, config, solver=solver, sampler=sampler, progress=progress)
+
+
+def warm_up_room(solver: CuboidSolver | None = None, sampler: Sampler | None = None) -> None:
+    """Compile the room's scoring kernels and the given parts' own, once per process, outside any timing."""
+    from cuboidcli.fitting.room_backend import warm_up_room as warm_up_kernels
+
+    warm_up_kernels()
+    warm_up_parts(solver, sampler)

@@ -1,44 +1,28 @@
-"""A frame's fitting points and what surrounds the estimator's loop: the fitting grid of a depth map
+"""A frame as the estimator's input (:func:`frame_input`): the fitting grid of a depth map
 (:func:`prepare_points`), the orientation constraint from gravity (:func:`resolve_alignment`), and the
 per-cell labels of the selected cuboids (:func:`grid_assignment`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
 
 import numpy as np
 import torch
 
 from cuboidcli.camera import Camera, valid_depth
-from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.align import Alignment
-from cuboidcli.fitting.assign import OCCLUDED, assign_points
-from cuboidcli.fitting.backend import backend_for
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.fit_input import FitInput, ImageGrid
 from cuboidcli.geometry.cells import ImageCells
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
-from cuboidcli.sampling import SpaceCells
 
 #: Label of a fitting-grid cell without depth (:func:`grid_assignment`).
 INVALID = -3
 
 
-@dataclass
-class PreparedPoints:
-    points: torch.Tensor  # (N, 3) float32, metres
-    grid_index: torch.Tensor  # (N,) flat index into the fitting grid
-    grid_shape: tuple[int, int]
-    depth_grid: torch.Tensor  # (Hs, Ws) metres, 0 = invalid
-    focal_cells: tuple[float, float] | None = None  # (fx, fy) / grid_step: focal lengths in grid cells
-    grid_step: int = 8
-    cells: ImageCells | None = None  # the points binned by grid cell (scoring visits the cells it can reach)
-    space: SpaceCells | None = None  # unorganised points (a room): the voxel cells localised sets search
-
-
-def prepare_points(
-    depth_m: np.ndarray, camera: Camera, grid_step: int, device: str = "cpu"
-) -> PreparedPoints:
-    """The fitting grid: every grid_step-th pixel (nearest, no averaging), invalid depth excluded."""
+def prepare_points(depth_m: np.ndarray, camera: Camera, grid_step: int, device: str = "cpu") -> FitInput:
+    """A frame's fitting points on its grid: every grid_step-th pixel (nearest, no averaging), invalid depth
+    excluded; seen from the camera, not yet aligned (:func:`frame_input` adds gravity)."""
     if depth_m.shape != (camera.height, camera.width):
         raise ValueError(
             f"depth map is {depth_m.shape[1]}x{depth_m.shape[0]} but the camera is "
@@ -52,20 +36,38 @@ def prepare_points(
     ok = np.flatnonzero(flat[:, 2] > 0)
     u, v = camera.pixel_grid(grid_step)
     cells = ImageCells.of_grid(ok, (u[0] - camera.cx) / camera.fx, (v[:, 0] - camera.cy) / camera.fy)
-    return PreparedPoints(
-        points=torch.from_numpy(flat[ok].astype(np.float32)).to(device),
-        grid_index=torch.from_numpy(ok),
-        grid_shape=depth_grid.shape,
-        depth_grid=torch.from_numpy(depth_grid.astype(np.float32)).to(device),
+    image_grid = ImageGrid(
+        index=torch.from_numpy(ok),
+        shape=depth_grid.shape,
+        depth=torch.from_numpy(depth_grid.astype(np.float32)).to(device),
+        step=grid_step,
         focal_cells=(camera.fx / grid_step, camera.fy / grid_step),
-        grid_step=grid_step,
         cells=cells,
     )
+    points = torch.from_numpy(flat[ok].astype(np.float32)).to(device)
+    return FitInput("frame", points, "camera", grid=image_grid)
 
 
-def resolve_alignment(
-    prep: PreparedPoints, config: FitConfig
-) -> tuple[Gravity | None, Alignment | None, str]:
+def frame_input(depth_m: np.ndarray, camera: Camera, config: FitConfig) -> FitInput:
+    """A depth map (H, W) metres seen by ``camera`` as the estimator's input: the fitting grid of
+    ``config.step_for`` its size, gravity and the orientation constraint (:func:`resolve_alignment`)."""
+    t0 = time.perf_counter()
+    inp = prepare_points(depth_m, camera, config.step_for(*depth_m.shape), config.device)
+    inp.started = t0
+    inp.timing_s["prepare"] = time.perf_counter() - t0
+    t = time.perf_counter()
+    gravity, alignment, warning = resolve_alignment(inp, config)
+    if config.align != "free" or config.gravity_down is not None:
+        inp.timing_s["gravity"] = time.perf_counter() - t
+    inp.gravity, inp.alignment = gravity, alignment
+    # without gravity the camera's y axis stands for down when telling a floor from a wall
+    inp.down = np.asarray(gravity.down if gravity is not None else (0.0, 1.0, 0.0), dtype=np.float64)
+    if warning:
+        inp.warnings.append(warning)
+    return inp
+
+
+def resolve_alignment(prep: FitInput, config: FitConfig) -> tuple[Gravity | None, Alignment | None, str]:
     """Gravity and the orientation constraint of a fit: (gravity or None, alignment or None, warning).
 
     A given ``config.gravity_down`` is used as it is; otherwise gravity is estimated from the depth map
@@ -75,9 +77,9 @@ def resolve_alignment(
     """
     if config.align == "free" and config.gravity_down is None:
         return None, None, ""
-    hs, ws = prep.grid_shape
+    hs, ws = prep.grid.shape
     grid = np.zeros((hs * ws, 3))
-    grid[prep.grid_index.numpy()] = prep.points.double().cpu().numpy()
+    grid[prep.grid.index.numpy()] = prep.points.double().cpu().numpy()
     grid = grid.reshape(hs, ws, 3)
     estimated = estimate_gravity(grid, seed=config.seed)
     if config.gravity_down is not None:
@@ -106,22 +108,10 @@ def resolve_alignment(
     return gravity, Alignment(config.align, gravity.up, axes), warning
 
 
-def grid_assignment(
-    prep: PreparedPoints, state: np.ndarray, cuboids: list[Cuboid], config: FitConfig
-) -> np.ndarray:
-    """Per fitting-grid cell label (Hs, Ws): cuboid index, -1 none, -2 occluded, -3 no depth; the values
-    come from the fit's backend (``config.backend`` on the points' device)."""
-    labels = np.full(prep.grid_shape[0] * prep.grid_shape[1], INVALID, dtype=np.int32)
-    lab = assign_points(
-        prep.points,
-        cuboids,
-        config.tau_sq_m2,
-        config.beta,
-        config.tau_c,
-        config.occlusion_aware,
-        backend_for(config.backend, prep.points.device),
-    )
-    if state is not None and len(cuboids):
-        lab[state < 0] = OCCLUDED
-    labels[prep.grid_index.numpy()] = lab
-    return labels.reshape(prep.grid_shape)
+def grid_assignment(prep: FitInput, labels: np.ndarray) -> np.ndarray:
+    """Per fitting-grid cell label (Hs, Ws) from the labels (N,) of a frame's fitting points: cuboid
+    index, -1 none, -2 occluded, -3 no depth."""
+    grid = prep.grid
+    out = np.full(grid.shape[0] * grid.shape[1], INVALID, dtype=np.int32)
+    out[grid.index.numpy()] = labels
+    return out.reshape(grid.shape)

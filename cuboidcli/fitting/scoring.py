@@ -19,10 +19,21 @@ class ScoreParams:
     """The inlier function's parameters: tau (m^2), beta, the occlusion threshold tau_c (m^2), and whether
     inliers are counted occlusion-aware (f_OAI) or plainly (f_I)."""
 
-    tau: float
-    beta: float
-    tau_c: float
+    tau: float = 0.004
+    beta: float = 5.0
+    tau_c: float = 0.008
     occlusion_aware: bool = True
+
+    @classmethod
+    def of(cls, settings) -> ScoreParams:
+        """The parameters of a FitConfig, or of a result's ``settings`` dict (its ``tau_sq_m2``, ``beta``,
+        ``tau_c_sq_m2`` (None: 2 tau) and ``occlusion_aware``; a key missing: the default)."""
+        get = settings.get if isinstance(settings, dict) else lambda k, d=None: getattr(settings, k, d)
+        tau = get("tau_sq_m2") if get("tau_sq_m2") is not None else cls.tau
+        tau_c = get("tau_c_sq_m2")
+        beta = get("beta") if get("beta") is not None else cls.beta
+        oai = get("occlusion_aware") if get("occlusion_aware") is not None else cls.occlusion_aware
+        return cls(float(tau), float(beta), 2.0 * tau if tau_c is None else float(tau_c), bool(oai))
 
 
 def values_torch(points: Tensor, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:

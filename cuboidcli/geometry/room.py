@@ -11,7 +11,7 @@ ways a fit can know what was seen (docs/scenes.md derives each):
   where the cuboid lies on that segment, and the same penalty by the viewpoint's depth m inside the cuboid
   where the viewpoint itself is inside it (f_I(m^2) - f_O(m^2) when negative). A bare cloud gets virtual
   viewpoints: each point's own, a short way out of its surface along its normal turned towards the inside
-  of the room (:mod:`cuboidcli.fitting.scene`).
+  of the room (:mod:`cuboidcli.fitting.room`).
 - ``inside``: a bare point cloud, no viewpoint. What is certain is that an observed surface point is not
   inside a solid object. A point strictly inside the cuboid counts f_I(d^2) - f_O(d^2) with d its distance
   to the nearest face: about 1 within sqrt(tau) of the surface (an inlier), negative deeper inside, linear

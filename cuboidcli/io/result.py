@@ -88,31 +88,17 @@ def input_record(
     }
 
 
-def frame_result(
-    camera: Camera,
-    cuboids: list[Cuboid],
-    info,
-    config,
-    input_meta: dict,
-    solver_name: str,
-    sampler_name: str,
-    extra_settings: dict | None = None,
-) -> FitResult:
-    """The "cuboids/1" result of a fitted frame (camera frame): ``info`` is the fit's
-    :class:`~cuboidcli.fitting.pipeline.FitInfo`, ``config`` its
-    :class:`~cuboidcli.fitting.config.FitConfig`; the settings are the config's fields, the Theta used, the
-    solver's and sampler's names and ``extra_settings`` (the weights used); ``input_meta`` is the ``input``
-    entry (:func:`input_record`)."""
-    settings = {
-        **config.to_dict(),
-        "theta_used": info.theta,
-        "solver_name": solver_name,
-        "sampler_name": sampler_name,
-        **(extra_settings or {}),
-    }
-    fit_info = {
+def fit_info_record(info) -> dict:
+    """The ``fit_info`` entry of a result: how the estimator's loop went (a
+    :class:`~cuboidcli.fitting.pipeline.FitInfo`), with a frame's grid step or a room's voxel size and
+    visibility."""
+    shape = {"grid_step": info.grid_step} if info.kind == "frame" else {
+        "voxel_m": round(info.voxel_m, 6),
+        "visibility": info.visibility,
+    }  # fmt: skip
+    return {
         "n_points": info.n_points,
-        "grid_step": info.grid_step,
+        **shape,
         "iterations": info.iterations,
         "batches": info.batches,
         "stop_reason": info.stop_reason,
@@ -122,25 +108,27 @@ def frame_result(
         "aligned": info.aligned,
         "warnings": info.warnings,
     }
-    extras = {"fit_info": fit_info}
-    if info.gravity is not None:
-        extras["gravity"] = info.gravity.to_dict()
-        extras["world_from_camera"] = info.gravity.world_from_camera().tolist()
-    return FitResult(
-        camera=camera,
-        cuboids=cuboids,
-        settings=settings,
-        timing_s=info.timing_s,
-        input=input_meta,
-        extras=extras,
-    )
+
+
+def settings_record(config, info, solver_name: str, sampler_name: str, extra: dict | None = None) -> dict:
+    """The ``settings`` entry: the FitConfig's fields as this input's kind reads them (``config`` resolved
+    for it), the Theta used, the solver's and sampler's names and ``extra`` (the weights used, how the
+    input was read)."""
+    return {
+        **config.to_dict(info.kind),
+        "theta_used": info.theta,
+        "solver_name": solver_name,
+        "sampler_name": sampler_name,
+        **(extra or {}),
+    }
 
 
 def same_settings(saved: dict, config, extra_settings: dict | None = None) -> bool:
-    """Whether a saved result's ``settings`` (as :func:`frame_result` writes them) are those of ``config``
-    (a FitConfig) and ``extra_settings`` (the weights used): a rerun may then keep that result instead of
-    fitting again. A setting the saved result lacks counts as its default: a setting is only added with
-    the default that reproduces what the code did before it existed."""
+    """Whether a saved result's ``settings`` (as :func:`settings_record` writes them) are ``wanted``, the
+    settings a fit would record now (``config``, a FitConfig resolved for the input's kind, and
+    ``extra_settings``: the weights used, how the input is read): a rerun may then keep that result
+    instead of fitting again. A setting the saved result lacks counts as its default: a setting is only
+    added with the default that reproduces what the code did before it existed."""
     import json
 
     wanted = {**json.loads(json.dumps(config.to_dict())), **(extra_settings or {})}

@@ -39,9 +39,9 @@ def load_scene(frame: Frame, grid_step: int, rgb_size: tuple[int, int] | None) -
         frame.name,
         frame.camera,
         prep.points.double(),
-        prep.grid_index,
-        prep.grid_shape,
-        prep.depth_grid.float(),
+        prep.grid.index,
+        prep.grid.shape,
+        prep.grid.depth.float(),
         grid_step,
     )
     if rgb_size is not None:
@@ -53,7 +53,7 @@ def load_scene(frame: Frame, grid_step: int, rgb_size: tuple[int, int] | None) -
         small = resize(image, *rgb_size)
         scene.rgb = torch.from_numpy(np.ascontiguousarray(small)).permute(2, 0, 1)[None].float() / 255.0
         u, v = frame.camera.pixel_grid(grid_step)
-        uv = np.stack([u.reshape(-1), v.reshape(-1)], 1)[prep.grid_index.numpy()]
+        uv = np.stack([u.reshape(-1), v.reshape(-1)], 1)[prep.grid.index.numpy()]
         scene.uv = torch.from_numpy(uv)
     return scene
 

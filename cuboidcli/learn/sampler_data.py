@@ -15,7 +15,8 @@ from pathlib import Path
 import torch
 
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.prepare import PreparedPoints, prepare_points
+from cuboidcli.fitting.fit_input import FitInput
+from cuboidcli.fitting.prepare import prepare_points
 from cuboidcli.io.dataset import Frame, list_frames, read_splits
 
 
@@ -24,7 +25,7 @@ class TrainScene:
     """A training frame reduced to its fitting points."""
 
     name: str
-    prep: PreparedPoints
+    prep: FitInput
 
 
 def dataset_splits(root: str | Path) -> tuple[list[Frame], list[Frame], str]:

@@ -51,8 +51,8 @@ import numpy as np
 import torch
 
 from cuboidcli.fitting.config import FitConfig
+from cuboidcli.fitting.fit_input import FitInput
 from cuboidcli.fitting.pipeline import fit_depth
-from cuboidcli.fitting.prepare import PreparedPoints
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.io.dataset import Frame
 from cuboidcli.learn.distributed import DistContext
@@ -77,7 +77,7 @@ STATE_KIND = "sampler-train-state"
 
 def train_scene(
     net: SamplerNet,
-    prep: PreparedPoints,
+    prep: FitInput,
     solver: NumericalSolver,
     lp: LossParams,
     instances: int,
@@ -93,10 +93,10 @@ def train_scene(
     state = torch.zeros(pts.shape[0], dtype=torch.float64)
     records = []
     for m in range(instances):
-        ctx = SamplingContext(pts, prep.grid_index, prep.grid_shape, prep.depth_grid.cpu(), state.float(), m)
+        ctx = SamplingContext(pts, prep.grid.index, prep.grid.shape, prep.grid.depth.cpu(), state.float(), m)
         depth, state_grid, valid = (t.to(device) for t in grid_inputs(ctx))
         out = net(depth, state_grid, valid)
-        at_points = prep.grid_index.to(device)
+        at_points = prep.grid.index.to(device)
         log_p = out.log_p[0].flatten(1)[:, at_points]  # (Q, N) at the fitting points
         log_p_free = out.log_p_free[0].flatten(1)[:, at_points]
         res = instance_loss(log_p, out.log_q[0], pts, state, solver, lp, generator, log_p_corr=log_p_free)

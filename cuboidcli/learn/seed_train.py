@@ -29,7 +29,7 @@ import torch
 
 from cuboidcli.fitting.box import values_one
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.prepare import PreparedPoints
+from cuboidcli.fitting.fit_input import FitInput
 from cuboidcli.fitting.scoring import ScoreParams, gains_cpu
 from cuboidcli.geometry.kernels import combine
 from cuboidcli.learn.job import OneNetJob, StepResult
@@ -85,7 +85,7 @@ class SeedRecord:
 
 
 def scene_records(
-    prep: PreparedPoints, scene: int, fit: FitConfig, cfg: SeedTrainConfig, gen: torch.Generator
+    prep: FitInput, scene: int, fit: FitConfig, cfg: SeedTrainConfig, gen: torch.Generator
 ) -> list[SeedRecord]:
     """Seed scores along a sequential fit of one scene (see the module docstring)."""
     pts = prep.points.cpu()
@@ -99,7 +99,7 @@ def scene_records(
     P = pts.double().numpy()
     for _ in range(cfg.steps):
         ctx = SamplingContext(
-            pts, prep.grid_index, prep.grid_shape, prep.depth_grid, state, 0, prep.focal_cells
+            pts, prep.grid.index, prep.grid.shape, prep.grid.depth, state, 0, prep.grid.focal_cells
         )
         _, idx, _ = draw_hypotheses(seq, ctx, cfg.hypotheses, fit.min_set, gen, 1.0, fit.local_radii_m)
         seeds = idx[:, 0]
@@ -118,11 +118,11 @@ def scene_records(
     return out
 
 
-def record_loss(net: SamplerNet, prep: PreparedPoints, rec: SeedRecord, kappa: float) -> torch.Tensor:
-    ctx = SamplingContext(prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, rec.state, 0)
+def record_loss(net: SamplerNet, prep: FitInput, rec: SeedRecord, kappa: float) -> torch.Tensor:
+    ctx = SamplingContext(prep.points, prep.grid.index, prep.grid.shape, prep.grid.depth, rec.state, 0)
     depth, state, valid = grid_inputs(ctx)
     out = net(depth, state, valid)
-    log_p = out.log_p[0, 0].flatten()[prep.grid_index][rec.seeds]  # (S,), prior included
+    log_p = out.log_p[0, 0].flatten()[prep.grid.index][rec.seeds]  # (S,), prior included
     log_p = torch.log_softmax(log_p, 0)
     prior = (1.0 - rec.state[rec.seeds].clamp(0.0, 1.0)).clamp_min(net.config.prior_floor)
     target = torch.softmax(torch.log(prior) + kappa * rec.score, 0)

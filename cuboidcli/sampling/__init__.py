@@ -103,6 +103,21 @@ class LocalSampler(SequentialSampler):
     local_fraction = 1.0
 
 
+def build_uniform(inputs) -> UniformSampler:
+    """The ``uniform`` sampler of the parts registry; it reads nothing of its ``BuildInputs``."""
+    return UniformSampler()
+
+
+def build_sequential(inputs) -> SequentialSampler:
+    """The ``sequential`` sampler of the parts registry; it reads nothing of its ``BuildInputs``."""
+    return SequentialSampler()
+
+
+def build_local(inputs) -> LocalSampler:
+    """The ``local`` sampler of the parts registry; it reads nothing of its ``BuildInputs``."""
+    return LocalSampler()
+
+
 def draw_sets_and_maps(
     p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
 ) -> tuple[Tensor, Tensor]:

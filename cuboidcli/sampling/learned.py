@@ -79,3 +79,9 @@ class LearnedSampler:
         p = p / p.sum(1, keepdim=True)
         q = out.q[0].double()
         return p.to(ctx.points.device), (q / q.sum()).to(ctx.points.device)
+
+
+def build(inputs) -> LearnedSampler:
+    """The sampler of the parts registry (``learned``) from a ``BuildInputs``: the network in
+    ``inputs.weights`` (found by the factories) on ``inputs.device``."""
+    return LearnedSampler.load(inputs.weights, device=inputs.device)

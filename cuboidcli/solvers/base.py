@@ -16,6 +16,12 @@ class SizeBounds:
     a_min: float = 1e-3
     a_max: float = 2.0
 
+    @classmethod
+    def of(cls, config) -> SizeBounds:
+        """The bounds a fit's settings give (``config.a_min``, ``config.a_max``), read by attribute: the
+        settings live in a layer above the solvers."""
+        return cls(config.a_min, config.a_max)
+
 
 class CuboidSolver(Protocol):
     """Fits one cuboid per minimal set.

@@ -121,3 +121,9 @@ class NeuralSolver:
                 out = self._forward_parallel(x, workers) if workers > 1 else self._forward(x, CHUNK_SETS)
         # Cloned outside inference mode: callers may update the results in place or use them in autograd.
         return tuple(o.to(minimal_sets.device, minimal_sets.dtype).clone() for o in out)
+
+
+def build(inputs) -> NeuralSolver:
+    """The solver of the parts registry (``neural``) from a ``BuildInputs``: the network in
+    ``inputs.weights`` (found by the factories) on ``inputs.device``, held to the fit's size bounds."""
+    return NeuralSolver(weights=inputs.weights, device=inputs.device, bounds=SizeBounds.of(inputs.config))

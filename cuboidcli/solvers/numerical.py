@@ -210,6 +210,13 @@ class NumericalSolver:
         return c.detach(), a.detach(), axis_angle_to_matrix(r.detach())
 
 
+def build(inputs) -> NumericalSolver:
+    """The solver of the parts registry (``numerical``) from a ``BuildInputs``: the fit's size bounds, Adam's
+    learning rate and steps, and its backend (``inputs.config``)."""
+    c = inputs.config
+    return NumericalSolver(bounds=SizeBounds.of(c), lr=c.solver_lr, iters=c.solver_iters, backend=c.backend)
+
+
 def _batched_cuboid_sq_distance(local: Tensor, half: Tensor) -> Tensor:
     """Eq. 2 for per-hypothesis point sets: local (H, C, 3), half (H, 3) -> (H, C)."""
     return cuboid_sq_distance(local, half)

@@ -74,3 +74,11 @@ class OnnxSolver:
         parts = list(self._pool.map(run, chunks)) if self._pool is not None else [run(c) for c in chunks]
         outs = [np.concatenate(p) for p in zip(*parts, strict=True)]
         return tuple(torch.from_numpy(o).to(minimal_sets.device, minimal_sets.dtype) for o in outs)
+
+
+def build(inputs) -> OnnxSolver:
+    """The solver of the parts registry (``onnx``) from a ``BuildInputs``: the exported solver
+    ``inputs.onnx``, held to the fit's size bounds."""
+    if inputs.onnx is None:
+        raise ValueError("the onnx solver needs an ONNX file (--onnx solver.onnx)")
+    return OnnxSolver(str(inputs.onnx), SizeBounds.of(inputs.config))

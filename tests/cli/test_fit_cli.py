@@ -80,7 +80,7 @@ def test_bad_inputs_give_one_line_errors(tmp_path, room_png, kind):
     args = ["fit", "--depth", room_png, "--camera", "nyu", "-o", tmp_path / "x.json", *FAST]
     if kind == "missing":
         args[2] = tmp_path / "nope.png"
-        expect = "depth file not found"
+        expect = "depth map not found"
     elif kind == "corrupt":
         bad = tmp_path / "bad.png"
         bad.write_bytes(b"\x89PNG\r\n\x1a\n garbage")
@@ -224,6 +224,8 @@ def test_rgb_folder_fits_every_photo_with_one_estimator(tmp_path, monkeypatch, t
     # A folder of images with --depth, or with one partial depth map, is refused in one line.
     r = run("fit", folder, "--depth", folder / "a_depth.png")
     assert r.exit_code == 2 and "IMAGE is a folder" in r.output
+    r = run("fit", folder / "a_rgb.jpg", "--depth", folder)  # one image for a folder of depth maps
+    assert r.exit_code == 2 and "leave IMAGE out" in r.output
     r = run("fit", folder, "--partial-depth", folder / "a_depth.png")
     assert r.exit_code == 2 and "--partial-depth belongs to one image" in r.output
     empty = tmp_path / "empty"

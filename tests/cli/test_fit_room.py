@@ -11,7 +11,7 @@ from typer.testing import CliRunner
 
 from cuboidcli.cli.main import app
 from cuboidcli.io.result import read_result
-from tests.fitting.test_scene_fit import scanned_room
+from tests.fitting.test_room_fit import scanned_room
 
 runner = CliRunner()
 SHARED = Path(__file__).resolve().parents[3] / "shared" / "data"
@@ -29,7 +29,8 @@ def test_a_point_cloud_gives_a_world_frame_result_and_its_outputs(tmp_path):
     assert r.exit_code == 0, r.output
     d = json.loads(out.read_text())
     assert d["frame"] == "world" and d["camera"] is None
-    assert d["settings"]["scene"]["max_cuboids"] == 40 and d["settings"]["scene"]["voxel_m"] == 0.1
+    assert d["settings"]["max_cuboids"] == 40 and d["settings"]["voxel_m"] == 0.1
+    assert "scene" not in d["settings"] and d["settings"]["load"] == {"unit": "m"}
     kinds = [c["kind"] for c in d["cuboids"]]
     assert "floor" in kinds and kinds.count("wall") >= 3
     assert np.allclose(np.asarray(d["world_from_input"])[:3, :3] @ d["up"]["up"], [0, 0, 1], atol=1e-6)
@@ -124,7 +125,7 @@ def test_a_folder_of_rooms_runs_on_workers_and_resumes(tmp_path):
     assert "0 done, 2 skipped" in again.output
     # a result written before a setting existed was fitted with its default: still complete
     saved = json.loads((out / "a_cuboids.json").read_text())
-    del saved["settings"]["refine_iters"], saved["settings"]["scene"]["virtual_view_m"]
+    del saved["settings"]["refine_iters"], saved["settings"]["virtual_view_m"]
     (out / "a_cuboids.json").write_text(json.dumps(saved))
     assert "0 done, 2 skipped" in run("fit", rooms, "-o", out, "--voxel", "0.1", "--glb").output
     other = run("fit", rooms, "-o", out, "--voxel", "0.12", "--glb")  # other settings: fitted again

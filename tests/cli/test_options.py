@@ -34,14 +34,15 @@ EXPOSED = {
     "fit": {
         "hypotheses", "max_cuboids", "sampler", "solver", "seed", "device", "theta", "grid_step",
         "occlusion_aware", "refine", "local_fraction", "max_batches", "align", "gravity_down", "slab_max_m",
+        "visibility", "up", "voxel_m",
     },
     "evaluate": {
         "sampler", "solver", "hypotheses", "max_cuboids", "grid_step", "occlusion_aware", "refine", "align",
-        "seed", "device",
+        "seed", "device", "visibility",
     },
     "demo": {"seed", "device"},
 }  # fmt: skip
-PRESET_OVERRIDES = EXPOSED["evaluate"] - {"seed", "device"}
+PRESET_OVERRIDES = EXPOSED["evaluate"] - {"seed", "device", "visibility"}
 
 #: (command, field) -> (the CLI default, why it is not the field's default).
 OTHER_DEFAULTS = {
@@ -57,6 +58,7 @@ OTHER_DEFAULTS = {
         ("evaluate", name): (None, "not given: the preset's value stands (without a preset, the field's)")
         for name in PRESET_OVERRIDES
     },
+    ("evaluate", "visibility"): (None, "a room scans' option only: not given, the field's auto stands"),
 }
 #: (command, field) -> why its help text is not the field's doc alone (the doc plus this command's text).
 OTHER_HELP = {
@@ -65,6 +67,8 @@ OTHER_HELP = {
     ("evaluate", "sampler"): "the doc plus the samplers an evaluation runs (not local)",
     ("evaluate", "solver"): "the doc plus the solvers an evaluation runs (not onnx: there is no --onnx)",
     ("evaluate", "seed"): "the doc plus: with --runs, the first run's",
+    ("evaluate", "visibility"): "help of its own: it applies to room scans only, not to the frames evaluated",
+    ("fit", "up"): "the doc plus the names a direction may be given by (z, y, -y, x) or x,y,z",
 }
 
 
@@ -121,10 +125,11 @@ def test_cli_options_take_default_and_help_from_fitconfig(name):
             assert "/".join(p.opts + p.secondary_opts) == flags(field), (name, field)
         doc = escape(field_help(field))
         if (name, field) in OTHER_HELP:
-            assert p.help != doc and (field == "device" or p.help.startswith(doc + " ")), (name, field)
+            own = OTHER_HELP[(name, field)].startswith("help of its own")
+            assert p.help != doc and (own or p.help.startswith(doc + " ")), (name, field)
         else:
             assert p.help == doc, (name, field)
-        if (name, field) in OTHER_DEFAULTS and p.default is None:  # the help still shows the field's default
+        if name == "evaluate" and field in PRESET_OVERRIDES:  # the help still shows the field's default
             assert p.show_default == f"{shown_default(field)}, or the preset's", (name, field)
     if name == "fit":  # defaults of None that the help spells out
         assert params["theta"].show_default == f"{DEFAULTS.theta_log_factor:g} ln n" == "6 ln n"

@@ -10,7 +10,7 @@ from typer.testing import CliRunner
 
 from cuboidcli.cli import synth as synth_cli
 from cuboidcli.io.sequence import read_sequence
-from cuboidcli.scene import is_scene_input
+from cuboidcli.load.room import is_room_input
 from cuboidcli.synth.scan import read_scan_truth
 
 
@@ -116,7 +116,7 @@ def test_synth_views_writes_room_scans(app, tmp_path):
         assert {"floor", "wall", "object"} <= kinds and len(points) == len(instance) > 1000
         assert set(np.unique(instance)) <= {c.extras["object"] for c in gt}
         # a posed sequence that cuboids fit reads as a room
-        assert is_scene_input(scene) and len(read_sequence(scene).frames) == 3
+        assert is_room_input(scene) and len(read_sequence(scene).frames) == 3
     # the two rooms differ
     assert (out / "scene_0000" / "gt.json").read_bytes() != (out / "scene_0001" / "gt.json").read_bytes()
 

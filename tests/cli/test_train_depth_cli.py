@@ -194,8 +194,27 @@ def test_init_starts_from_a_weights_file(app, dataset, tmp_path):
     first = tmp_path / "first"
     assert _run(app, dataset, "--output", first, "--epochs", "1", *TINY_RUN).exit_code == 0
     second = tmp_path / "second"
-    r = _run(app, dataset, "--output", second, "--epochs", "1", "--init", first / "best.pt", "--lr", "1e-12",
-             "--grad-weight", "0.5", "--blur", "1", "--noise", "0.02", "--white-balance", "0.1", *TINY_RUN)
+    r = _run(
+        app,
+        dataset,
+        "--output",
+        second,
+        "--epochs",
+        "1",
+        "--init",
+        first / "best.pt",
+        "--lr",
+        "1e-12",
+        "--grad-weight",
+        "0.5",
+        "--blur",
+        "1",
+        "--noise",
+        "0.02",
+        "--white-balance",
+        "0.1",
+        *TINY_RUN,
+    )
     assert r.exit_code == 0, r.output
     a = torch.load(first / "best.pt", weights_only=True)
     b = torch.load(second / "best.pt", weights_only=True)

@@ -11,9 +11,9 @@ import torch
 from torch import nn
 
 from cuboidcli.camera import Camera
-from cuboidcli.depth import BuiltinDepthEstimator, OnnxDepthEstimator
+from cuboidcli.depth import BuiltinDepthEstimator, OnnxDepthEstimator, estimate_depth
 from cuboidcli.depth.scale import fit_scale_shift
-from cuboidcli.factories import depth_for_fit, make_depth_estimator
+from cuboidcli.factories import make_depth_estimator
 from cuboidcli.nets.checkpoint import checkpoint_dict
 from cuboidcli.nets.depth import DepthNet, DepthNetConfig, net_from_checkpoint
 
@@ -135,7 +135,7 @@ def test_builtin_missing_weights(tmp_path, monkeypatch):
 
 def test_default_builtin_via_environment(tiny_weights, rgb, monkeypatch):
     monkeypatch.setenv("CUBOIDS_DEPTH_WEIGHTS", str(tiny_weights))
-    depth, text = depth_for_fit(rgb, CAMERA)
+    depth, text = estimate_depth(make_depth_estimator(), rgb, CAMERA)
     assert depth.shape == (60, 80) and "built-in" in text
     with pytest.raises(ValueError, match="metric"):
         make_depth_estimator(kind="relative", scale=2.0)
@@ -196,12 +196,11 @@ def test_given_scale_and_shift(onnx_models, rgb):
     assert "scale 2" in est.describe()
 
 
-def test_depth_for_fit_with_partial_depth(onnx_models, rgb):
+def test_depth_with_partial_depth(onnx_models, rgb):
     truth = 0.5 * (4.0 * red(rgb) + 1.0)
     partial = np.where(np.random.default_rng(1).random(truth.shape) < 0.1, truth, 0.0)
-    depth, text = depth_for_fit(
-        rgb, CAMERA, model=onnx_models["dynamic"], kind="relative", partial_depth=partial
-    )
+    estimator = make_depth_estimator(onnx_models["dynamic"], kind="relative", ref_depth=partial)
+    depth, text = estimate_depth(estimator, rgb, CAMERA)
     np.testing.assert_allclose(depth, truth, rtol=1e-4)
     assert "dynamic.onnx" in text and "aligned" in text
 

@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from cuboidcli.camera import Camera
+from cuboidcli.depth import estimate_depth
 from cuboidcli.depth.hf import HFDepthEstimator, is_hf_model
-from cuboidcli.factories import DepthModelOptions, depth_estimator, depth_for_fit, make_depth_estimator
+from cuboidcli.factories import DepthModelOptions, depth_estimator, make_depth_estimator
 
 pytest.importorskip("transformers")
 pytestmark = pytest.mark.usefixtures("one_thread")
@@ -67,7 +68,8 @@ def test_relative_model_aligned_to_partial_depth(hf_models, rgb):
     raw = est.raw_output(rgb, CAMERA)
     truth = 1.0 / (0.5 * raw + (0.2 - 0.5 * raw.min()))  # positive inverse depth
     partial = np.where(np.random.default_rng(2).random((H, W)) < 0.2, truth, 0.0)
-    depth, text = depth_for_fit(rgb, CAMERA, hf_models["da_relative"], partial_depth=partial)
+    estimator = make_depth_estimator(hf_models["da_relative"], ref_depth=partial)
+    depth, text = estimate_depth(estimator, rgb, CAMERA)
     np.testing.assert_allclose(depth, truth, rtol=1e-4)
     assert "aligned to the partial depth map" in text
 

@@ -258,7 +258,12 @@ def test_presets_combine_and_options_override_them():
     assert resolve("seqransac-oai")[0].occlusion_aware is True
     assert resolve("ours-neural")[0].solver == "neural"
     assert resolve("uniform,paper")[0] == FitConfig(
-        sampler="uniform", refine=False, local_fraction=0.0, max_batches=1, hypotheses=4096, slab_max_m=None,
+        sampler="uniform",
+        refine=False,
+        local_fraction=0.0,
+        max_batches=1,
+        hypotheses=4096,
+        slab_max_m=None,
         theta_log_factor=9.0,
         align="free",
     )

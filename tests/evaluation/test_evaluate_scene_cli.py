@@ -12,7 +12,8 @@ from typer.testing import CliRunner
 from cuboidcli import __version__
 from cuboidcli.camera import Camera
 from cuboidcli.evaluation import scene_run
-from cuboidcli.scene import load_scene
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.load import load
 from cuboidcli.synth.scan import generate_room_scan, write_room_scan
 
 #: A quick estimator: the test is about the command, not the numbers (still well above chance).
@@ -63,7 +64,8 @@ def test_room_scans_with_the_baseline(app, rooms, tmp_path):
     assert doc["command"].startswith("cuboids ") and doc["data"] == str(rooms.resolve())
     settings = doc["settings"]
     assert settings["bare"] is False and settings["baseline"] is True
-    assert settings["scene"]["visibility"] == "auto" and settings["scene"]["max_cuboids"] == 8
+    assert settings["fit"]["visibility"] == "auto" and settings["fit"]["max_cuboids"] == 8
+    assert "scene" not in settings  # the room settings are the fit's
     assert settings["fit"]["hypotheses"] == 64 and settings["fit"]["sampler"] == "sequential"
     assert doc["methods"] == {"cuboids": "cuboids (views)", "baseline": "open3d planes+clusters"}
     rows = doc["scenes"]
@@ -97,36 +99,37 @@ def test_one_scan_as_a_bare_cloud(app, rooms, tmp_path):
     assert "1 room scan:" in result.output and "cuboids (inside, bare cloud)" in result.output
     assert "planes+clusters" not in result.output
     doc = json.loads((out / "scenes.json").read_text())
-    assert doc["settings"]["bare"] is True and doc["settings"]["scene"]["visibility"] == "inside"
+    assert doc["settings"]["bare"] is True and doc["settings"]["fit"]["visibility"] == "inside"
     (row,) = doc["scenes"]
     assert row["scene"] == "scene_0001" and row["method"] == "cuboids" and 1 <= row["n_cuboids"] <= 4
 
 
-def test_bare_fits_the_fused_points_without_their_cameras(rooms, monkeypatch):
-    """--bare is the library call fit_scene(fused points, viewpoints=None), with the fitter's parts."""
-    import cuboidcli.fitting.scene as fitting_scene
-
+def test_bare_fits_the_fused_points_without_their_cameras(rooms):
+    """--bare is the library call Fitter.fit(fused points): an (N, 3) array, a room without its cameras
+    (no viewpoints, no up hint), with the fitter's own settings and parts."""
     calls = []
 
     class Info:
         visibility = "views"
-        objects = []
 
-    def fake_fit_scene(points, config, scene, **parts):
-        calls.append((points, config, scene, parts))
-        return [], Info()
-
-    monkeypatch.setattr(fitting_scene, "fit_scene", fake_fit_scene)
+    class Result:
+        cuboids, objects, info = [], [], Info()
 
     class Fitter:
-        config, solver, sampler = object(), object(), object()
+        config = FitConfig()
+
+        def fit(self, x, *args, **kwargs):
+            calls.append((x, args, kwargs))
+            return Result()
+
+        def fit_input(self, *args, **kwargs):
+            raise AssertionError("a bare cloud is fitted without its cameras")
 
     settings = scene_run.SceneEvalSettings(bare=True)
     rows, visibility = scene_run.evaluate_scene(rooms / "scene_0000", Fitter(), settings)
-    ((points, config, scene, parts),) = calls
-    assert np.array_equal(points, load_scene(rooms / "scene_0000").cloud.points)
-    assert config is Fitter.config and scene is settings.scene
-    assert parts == {"solver": Fitter.solver, "sampler": Fitter.sampler, "viewpoints": None}
+    ((points, args, kwargs),) = calls
+    assert isinstance(points, np.ndarray) and points.shape[1] == 3
+    assert np.array_equal(points, load(rooms / "scene_0000").points) and args == () and kwargs == {}
     assert visibility == "views" and rows[0]["n_cuboids"] == 0 and rows[0]["auc20cm_pct"] == 0.0
 
 

@@ -79,7 +79,7 @@ def test_fitting_grid_excludes_invalid_depth(nyu_camera):
     depth[:, :320] = 0.0
     depth[0, 328] = np.nan
     prep = prepare_points(depth, nyu_camera, 8)
-    assert prep.grid_shape == (60, 80)
+    assert prep.grid.shape == (60, 80)
     assert prep.points.shape[0] == 60 * 40 - 1
     assert torch.isfinite(prep.points).all() and (prep.points[:, 2] == 2.0).all()
 

@@ -104,8 +104,8 @@ def test_a_slab_normal_is_matched_first():
 def test_a_leaning_far_wall_stands_on_the_room_axes():
     """A far wall measured leaning by 10 degrees (Kinect depth bends far planes) and seen next to a doorway:
     its own tilted plane holds all its points, the vertical one about 60 %, and little of the frame is seen
-beyond it. As part of the room's shell it
-    still takes the room's axes; the same slab with something behind it keeps its own plane."""
+    beyond it. As part of the room's shell it still takes the room's axes; the same slab with something
+    behind it keeps its own plane."""
     wall = _wall(4.5, x=(-1.5, 0.5), y=(-0.6, 0.6), tilt_deg=10.0)
     door = _wall(6.5, x=(0.9, 1.2), y=(-0.6, 0.6))
     pts = torch.from_numpy(np.concatenate([wall, door, _floor()]))

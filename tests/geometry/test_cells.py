@@ -44,7 +44,7 @@ def test_cells_give_the_same_gains_bit_for_bit(oai):
     assert (state < 0).sum() > 20 and (state > 0.5).sum() > 20
     args = (pts.numpy(), c.numpy(), a.numpy(), R.numpy(), state.numpy(), TAU, BETA, 2 * TAU, oai)
     plain = score_gains(*args)
-    culled = score_gains(*args, cells=prep.cells)
+    culled = score_gains(*args, cells=prep.grid.cells)
     assert np.array_equal(plain, culled)
     assert (plain != 0).sum() > 100
 
@@ -54,7 +54,7 @@ def test_cells_pruning_keeps_every_hypothesis_that_reaches_the_threshold():
     args = (pts.numpy(), c.numpy(), a.numpy(), R.numpy(), state.numpy(), TAU, BETA, 2 * TAU)
     full = score_gains(*args)
     thr = np.sort(full)[-6]
-    pruned = score_gains(*args, prune_below=thr, cells=prep.cells)
+    pruned = score_gains(*args, prune_below=thr, cells=prep.grid.cells)
     kept = np.isfinite(pruned)
     assert kept.sum() >= 6 and (~kept).sum() > 300
     assert np.array_equal(pruned[kept], full[kept])
@@ -65,21 +65,21 @@ def test_cells_must_hold_the_points():
     prep, pts, c, a, R, state = grid_scene()
     with pytest.raises(ValueError, match="cells hold"):
         score_gains(pts[:-1].numpy(), c.numpy(), a.numpy(), R.numpy(), state[:-1].numpy(), TAU, BETA, 0.008,
-                    cells=prep.cells)  # fmt: skip
+                    cells=prep.grid.cells)  # fmt: skip
     with pytest.raises(ValueError, match="sorted"):
         ImageCells.of_grid(np.array([3, 1]), np.zeros(4), np.zeros(1))
 
 
 def test_subgrid_holds_every_other_row_and_fourth_column():
     prep, pts, *_ = grid_scene()
-    cols = prep.grid_shape[1]
-    idx, sub = prep.cells.subgrid(2, 4)
-    r, c = np.divmod(prep.grid_index.numpy()[idx], cols)
+    cols = prep.grid.shape[1]
+    idx, sub = prep.grid.cells.subgrid(2, 4)
+    r, c = np.divmod(prep.grid.index.numpy()[idx], cols)
     assert (r % 2 == 0).all() and (c % 4 == 0).all()
-    every = np.divmod(prep.grid_index.numpy(), cols)
+    every = np.divmod(prep.grid.index.numpy(), cols)
     assert len(idx) == ((every[0] % 2 == 0) & (every[1] % 4 == 0)).sum()
     assert sub.shape == (30, 20) and sub.start[-1] == len(idx)
-    assert np.array_equal(sub.col_u, prep.cells.col_u[::4])
+    assert np.array_equal(sub.col_u, prep.grid.cells.col_u[::4])
 
 
 def test_exact_selection_on_cells_nominates_the_true_winner():
@@ -87,15 +87,15 @@ def test_exact_selection_on_cells_nominates_the_true_winner():
     sp = ScoreParams(TAU, BETA, 2 * TAU)
     full = score_gains(pts.numpy(), c.numpy(), a.numpy(), R.numpy(), state.numpy(), TAU, BETA, 2 * TAU)
     backend = NumbaBackend()
-    backend.bind_cells(prep.points, prep.cells)
+    backend.bind_cells(prep.points, prep.grid.cells)
     best, gain, g = backend.select_best(prep.points, c, a, R, state, sp, torch.Generator().manual_seed(0))
     assert best == full.argmax() and gain == full.max()
     assert np.isfinite(g.numpy()).sum() < 100  # the rest was pruned
     # nomination = the best 16 on the regular eighth of the grid, whatever the blocks prune
-    idx, sub = prep.cells.subgrid(2, 4)
+    idx, sub = prep.grid.cells.subgrid(2, 4)
     sub_gains = score_gains(pts[idx].numpy(), c.numpy(), a.numpy(), R.numpy(), state[idx].numpy(), TAU, BETA,
                             2 * TAU)  # fmt: skip
-    top = backend._nominate(prep.points, c, a, R, state, sp, prep.cells, 16)
+    top = backend._nominate(prep.points, c, a, R, state, sp, prep.grid.cells, 16)
     assert set(top.tolist()) == set(np.argsort(-sub_gains, kind="stable")[:16].tolist())
 
 
@@ -103,7 +103,7 @@ def test_scoring_arrays_follow_a_state_changed_in_place():
     prep, pts, c, a, R, state = grid_scene(seed=3)
     sp = ScoreParams(TAU, BETA, 2 * TAU)
     backend = NumbaBackend()
-    backend.bind_cells(prep.points, prep.cells)
+    backend.bind_cells(prep.points, prep.grid.cells)
     s = state.clone()
     before = backend.gains(prep.points, c, a, R, s, sp)
     s.fill_(0.0)

@@ -10,7 +10,8 @@ import pytest
 
 from cuboidcli.camera import Camera
 from cuboidcli.io.depth import InputError
-from cuboidcli.io.sequence import fuse_sequence, read_sequence, sequence_layout
+from cuboidcli.io.sequence import read_sequence, sequence_layout
+from cuboidcli.load.fuse import fuse_sequence
 from tests.conftest import SHARED_DATA, yaw
 
 CAM = Camera(60.0, 60.0, 31.5, 23.5, 64, 48)

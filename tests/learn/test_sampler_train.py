@@ -55,9 +55,9 @@ def prep(camera):
 def _net_output(net, prep, state=None):
     n = prep.points.shape[0]
     state = torch.zeros(n) if state is None else state
-    ctx = SamplingContext(prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, state, 0)
+    ctx = SamplingContext(prep.points, prep.grid.index, prep.grid.shape, prep.grid.depth, state, 0)
     out = net(*grid_inputs(ctx))
-    return out.log_p[0].flatten(1)[:, prep.grid_index], out.log_q[0]
+    return out.log_p[0].flatten(1)[:, prep.grid.index], out.log_q[0]
 
 
 # ---- regularisers and schedule on hand-built inputs -------------------------------------------------

@@ -16,7 +16,7 @@ WEIGHTS = Path(__file__).resolve().parents[2] / "models" / "sampler_v3.pt"
 
 
 def _kl_to_prior(sampler, prep, state):
-    ctx = SamplingContext(prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, state.float(), 0)
+    ctx = SamplingContext(prep.points, prep.grid.index, prep.grid.shape, prep.grid.depth, state.float(), 0)
     p, _ = sampler.distributions(ctx)
     prior = (1.0 - state.double().clamp(0.0, 1.0)).clamp_min(1e-3)
     prior = prior / prior.sum()

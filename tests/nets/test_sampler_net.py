@@ -33,7 +33,7 @@ def _context(depth, camera, state=None) -> SamplingContext:
     prep = prepare_points(depth, camera, 4)
     n = prep.points.shape[0]
     state = torch.zeros(n) if state is None else state
-    return SamplingContext(prep.points, prep.grid_index, prep.grid_shape, prep.depth_grid, state, 0)
+    return SamplingContext(prep.points, prep.grid.index, prep.grid.shape, prep.grid.depth, state, 0)
 
 
 def _random_inputs(b=2, h=12, w=16, seed=0):

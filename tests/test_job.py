@@ -1,5 +1,5 @@
-"""cuboidcli.folder: one FrameJob fits one frame and every frame of a folder alike, and a rerun skips the
-frames whose outputs are complete. Frames are 80x60 renders, fits are small."""
+"""cuboidcli.job: one Job fits one frame and every frame of a folder alike (fit_task is its one task), and a
+rerun skips the frames whose outputs are complete. Frames are 80x60 renders, fits are small."""
 
 from __future__ import annotations
 
@@ -15,7 +15,8 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.raycast import render_depth
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.folder import FrameJob, fit_file, folder_tasks
+from cuboidcli.job import Job, fit_task, folder_tasks
+from cuboidcli.load import LoadOptions
 
 CAM = Camera.preset("nyu").scaled(0.125)  # 80x60
 K = f"{CAM.fx},{CAM.fy},{CAM.cx},{CAM.cy}"
@@ -35,25 +36,28 @@ def frames(tmp_path_factory):
 
 
 def test_one_frame_and_the_folder_task_give_the_same_result(frames, tmp_path):
-    job = FrameJob(CONFIG, intrinsics=K, glb=True)
+    job = Job(CONFIG, options=LoadOptions(intrinsics=K), source="depth", outputs=("glb",))
     frame = job.load(frames / "f0.png")
     assert frame.meta["depth"] == str(frames / "f0.png") and frame.meta["depth_source"] == "depth map"
     written = job.save(job.fit(frame), tmp_path / "one.json")
     assert written == [tmp_path / "one.json", tmp_path / "one.glb"]
-    outcome = fit_file(job, str(frames / "f0.png"), str(tmp_path / "task.json"))
+    outcome = fit_task(job, str(frames / "f0.png"), str(tmp_path / "task.json"))
     assert outcome.status == "done" and outcome.value[0] >= 1 and outcome.value[2] == "depth map"
     one, task = (json.loads((tmp_path / n).read_text()) for n in ("one.json", "task.json"))
     assert one["cuboids"] == task["cuboids"] and one["settings"] == task["settings"]
-    assert job.outputs(tmp_path / "task.json") == [tmp_path / "task.glb", tmp_path / "task.json"]
+    # how the input was read: the loading options that apply to a depth map
+    assert one["settings"]["load"] == {"intrinsics": K, "camera": None, "depth_scale": None}
+    assert job.expected(tmp_path / "task.json") == [tmp_path / "task.glb", tmp_path / "task.json"]
 
 
 def test_folder_tasks_skip_complete_frames_of_the_same_settings(frames, tmp_path):
     folder = tmp_path / "frames"
     shutil.copytree(frames, folder)
     (folder / "cameras.json").write_text(json.dumps({"fx": CAM.fx, "fy": CAM.fy, "cx": CAM.cx, "cy": CAM.cy}))
-    job = FrameJob(CONFIG).in_folder(folder)
-    assert job.intrinsics == str(folder / "cameras.json")
-    assert FrameJob(CONFIG, intrinsics=K).in_folder(folder).intrinsics == K  # -K wins
+    job = Job(CONFIG, source="depth").in_folder(folder)
+    assert job.options.intrinsics == str(folder / "cameras.json")
+    given = Job(CONFIG, options=LoadOptions(intrinsics=K), source="depth")
+    assert given.in_folder(folder).options.intrinsics == K  # -K wins
     files = sorted(folder.glob("*.png"))
     out = tmp_path / "out"
     tasks, skipped = folder_tasks(job, files, out, skip_existing=True)
@@ -61,19 +65,22 @@ def test_folder_tasks_skip_complete_frames_of_the_same_settings(frames, tmp_path
         (str(files[0]), str(out / "f0_cuboids.json")),
         (str(files[1]), str(out / "f1_cuboids.json")),
     ]
-    assert fit_file(*tasks[0]).status == "done"
+    assert fit_task(*tasks[0]).status == "done"
     tasks, skipped = folder_tasks(job, files, out, skip_existing=True)
     assert skipped == [files[0]] and [t[1] for t in tasks] == [str(files[1])]
     assert len(folder_tasks(job, files, out, skip_existing=False)[0]) == 2
-    other = FrameJob(replace(CONFIG, seed=1), intrinsics=job.intrinsics)
+    other = replace(job, config=replace(CONFIG, seed=1))
     assert folder_tasks(other, files, out, skip_existing=True)[1] == []  # other settings: fitted again
-    with_glb = FrameJob(CONFIG, intrinsics=job.intrinsics, glb=True)
+    with_glb = replace(job, outputs=("glb",))
     assert folder_tasks(with_glb, files, out, skip_existing=True)[1] == []  # its GLB is missing
+    scaled = replace(job, options=replace(job.options, depth_scale=0.001))
+    assert folder_tasks(scaled, files, out, skip_existing=True)[1] == []  # read otherwise: fitted again
 
 
 def test_a_bad_frame_fails_with_one_line(tmp_path):
     bad = tmp_path / "bad.png"
     cv2.imwrite(str(bad), np.zeros((60, 80), np.uint8))
-    outcome = fit_file(FrameJob(CONFIG, intrinsics=K), str(bad), str(tmp_path / "bad.json"))
+    job = Job(CONFIG, options=LoadOptions(intrinsics=K), source="depth")
+    outcome = fit_task(job, str(bad), str(tmp_path / "bad.json"))
     assert outcome.status == "failed" and "8-bit" in outcome.message
     assert not (tmp_path / "bad.json").exists()

@@ -1,5 +1,6 @@
-"""cuboidcli.frame: one frame's inputs (depth and/or RGB, intrinsics, depth scale) as a FrameInput,
-and a fit packaged as a FitResult with its settings and fit_info (cuboidcli.io.result.frame_result)."""
+"""cuboidcli.load.frame: one frame's inputs (depth and/or RGB, intrinsics, depth scale) as a FrameData
+(the camera and depth scale resolved by cuboidcli.load.camera), and a fit packaged as a FitResult with its
+settings and fit_info (cuboidcli.result.result_record)."""
 
 from __future__ import annotations
 
@@ -16,11 +17,14 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.factories import DepthModelOptions, depth_estimator
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import FitInfo
-from cuboidcli.frame import load_frame, resolve_depth_scale
 from cuboidcli.geometry.gravity import given_gravity
 from cuboidcli.io.depth import InputError
 from cuboidcli.io.photo import DEFAULT_FOV_DEG
-from cuboidcli.io.result import frame_result, read_result, same_settings, write_result
+from cuboidcli.io.result import read_result, same_settings, write_result
+from cuboidcli.load import Input
+from cuboidcli.load.camera import resolve_depth_scale
+from cuboidcli.load.frame import load_frame
+from cuboidcli.result import result_record
 
 H, W = 48, 64
 SPEC = "200,210,31.5,23.5"
@@ -55,7 +59,7 @@ def test_a_depth_map_with_intrinsics(depth_png):
     assert frame.depth_m.dtype == np.float32 and frame.depth_m.shape == (H, W)
     assert np.array_equal(frame.depth_m, _units().astype(np.float32) * np.float32(0.001))
     assert frame.camera == Camera(200.0, 210.0, 31.5, 23.5, W, H)  # the size comes from the depth map
-    assert frame.rgb is None and frame.depth_scale == 0.001 and frame.depth_seconds is None
+    assert frame.rgb is None and frame.depth_seconds is None
     assert frame.notes == []
     assert frame.meta == {
         "depth": str(depth_png),
@@ -81,7 +85,8 @@ def test_without_intrinsics_a_default_field_of_view_is_assumed_and_the_user_told
     )
     tum = load_frame(tmp_path / "full.png", preset="tum")  # a preset brings its depth unit: 1/5000 m
     assert tum.camera == Camera.preset("tum") and tum.notes == []
-    assert tum.depth_scale == PRESETS["tum"]["depth_scale"] and tum.meta["intrinsics_source"] == "preset:tum"
+    assert tum.meta["depth_scale"] == PRESETS["tum"]["depth_scale"]
+    assert tum.meta["intrinsics_source"] == "preset:tum"
     assert np.allclose(tum.depth_m, units / 5000.0, rtol=1e-6)
     # intrinsics given in a file for another image size but plausible for this one are used as they are,
     # with a note
@@ -116,7 +121,7 @@ def test_a_preset_is_scaled_to_an_image_of_its_aspect_ratio_and_refused_for_anot
         load_frame(tmp_path / "square.png", preset="nyu")
     # -K wins over a preset, which then only gives the depth unit
     both = load_frame(tmp_path / "square.png", preset="tum", intrinsics="800,800,499.5,499.5")
-    assert both.camera.fx == 800.0 and both.depth_scale == PRESETS["tum"]["depth_scale"]
+    assert both.camera.fx == 800.0 and both.meta["depth_scale"] == PRESETS["tum"]["depth_scale"]
 
 
 def _small(tmp_path):
@@ -132,6 +137,7 @@ def test_depth_scale_option_beats_the_intrinsics_file_which_beats_the_preset():
     assert resolve_depth_scale(None, with_scale, "scannet") == 0.0002
     assert resolve_depth_scale(None, without, "tum") == pytest.approx(0.0002)
     assert resolve_depth_scale(None, without, None) == 0.001
+    assert resolve_depth_scale(None, None, None) == 0.001  # no intrinsics given at all
     for bad in (0.0, -0.001):
         with pytest.raises(InputError, match=rf"--depth-scale must be positive \(got {bad}\)"):
             resolve_depth_scale(bad, with_scale, None)
@@ -155,11 +161,11 @@ def test_a_cameras_json_gives_intrinsics_and_depth_scale_per_frame(tmp_path):
     (tmp_path / "cameras.json").write_text(json.dumps(cams))
     spec = str(tmp_path / "cameras.json")
     frame = load_frame(tmp_path / "b_depth.png", intrinsics=spec)  # the name "b" comes from "b_depth"
-    assert frame.camera == Camera(150.0, 160.0, 30.0, 20.0, W, H) and frame.depth_scale == 0.0005
+    assert frame.camera == Camera(150.0, 160.0, 30.0, 20.0, W, H) and frame.meta["depth_scale"] == 0.0005
     assert np.array_equal(frame.depth_m, units.astype(np.float32) * np.float32(0.0005))
     assert frame.meta["intrinsics_source"] == spec and frame.notes == []
     other = load_frame(tmp_path / "b_depth.png", intrinsics=spec, frame_name="a", depth_scale=0.001)
-    assert other.camera.fx == 100.0 and other.depth_scale == 0.001
+    assert other.camera.fx == 100.0 and other.meta["depth_scale"] == 0.001
     with pytest.raises(InputError, match="holds intrinsics for several frames .*none is named 'c'"):
         load_frame(tmp_path / "b_depth.png", intrinsics=spec, frame_name="c")
 
@@ -245,6 +251,12 @@ def _info(**kwargs) -> FitInfo:
     return replace(info, **kwargs)
 
 
+def frame_result(camera, cuboids, info, config, meta, solver_name, sampler_name, extra=None):
+    """The record of a frame fitted with ``config``, as :class:`cuboidcli.api.Fitter` makes it."""
+    inp = Input("depth", camera, meta, depth_m=np.zeros((camera.height, camera.width), np.float32))
+    return result_record(inp, cuboids, info, config, solver_name, sampler_name, extra or {})
+
+
 def test_frame_result_records_the_settings_and_what_happened():
     camera = Camera(200.0, 210.0, 31.5, 23.5, W, H)
     cuboids = [Cuboid([0.0, 0.0, 2.0], [0.5, 0.4, 0.3], np.eye(3))]
@@ -255,7 +267,7 @@ def test_frame_result_records_the_settings_and_what_happened():
     assert result.camera == camera and result.cuboids == cuboids and result.input == meta
     assert result.timing_s == {"sample": 0.2, "total": 0.5}
     assert result.settings == {
-        **config.to_dict(),
+        **config.to_dict("frame"),
         "theta_used": 41.4,
         "solver_name": "numerical",
         "sampler_name": "sequential",
@@ -281,6 +293,8 @@ def test_frame_result_records_the_settings_and_what_happened():
     assert levelled.extras["gravity"] == gravity.to_dict()
     assert np.allclose(levelled.extras["world_from_camera"], gravity.world_from_camera())
     assert "weights" not in levelled.settings
+    # a frame's settings leave out those only a room reads
+    assert not {"voxel_m", "visibility", "up", "virtual_view_m"} & set(result.settings)
 
 
 def test_same_settings_compares_a_saved_result_with_a_configuration(tmp_path):

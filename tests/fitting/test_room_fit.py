@@ -1,9 +1,10 @@
-"""The room-scale estimator (fitting/scene.py) on a room given as points, and the frame's fit it must
-leave unchanged."""
+"""The room-scale estimator (fitting/room.py, fitting/pipeline.py fit_room) on a room given as points, and
+the frame's fit it must leave unchanged."""
 
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -12,7 +13,8 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.iou import box_iou
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.fitting.scene import SceneConfig, fit_scene, fitting_voxels
+from cuboidcli.fitting.pipeline import fit_room
+from cuboidcli.fitting.room import fitting_voxels
 from cuboidcli.geometry.cloud import free_side_normals
 from tests.conftest import fit_named, simple_room
 
@@ -53,15 +55,15 @@ def parts():
     return config, make_solver(config, None, None, "cpu"), make_sampler("sequential", None, "cpu")
 
 
-def _fit(parts, points, **scene):
+def _fit(parts, points, **room):
     config, solver, sampler = parts
-    return fit_scene(points, config, SceneConfig(voxel_m=0.1, **scene), solver=solver, sampler=sampler)
+    return fit_room(points, replace(config, voxel_m=0.1, **room), solver=solver, sampler=sampler)
 
 
 def test_a_scanned_room_gives_its_floor_walls_and_boxes_on_the_cabinet(parts):
     cuboids, info = _fit(parts, scanned_room())
-    assert info.visibility == "views" and info.up.source == "estimated"
-    assert abs(abs(info.up.up[2]) - 1.0) < 1e-3 and info.up.up[2] > 0
+    assert info.visibility == "views" and info.room_up.source == "estimated"
+    assert abs(abs(info.room_up.up[2]) - 1.0) < 1e-3 and info.room_up.up[2] > 0
     kinds = [c.kind for c in cuboids]
     assert kinds.count("floor") == 1 and kinds.count("wall") >= 3
     floor = cuboids[kinds.index("floor")]
@@ -104,7 +106,7 @@ def test_the_same_seed_gives_the_same_room(parts):
 def test_a_given_up_is_used(parts):
     pts = scanned_room()[:, [0, 2, 1]] * np.array([1.0, -1.0, 1.0])  # y down
     _, info = _fit(parts, pts, up=(0.0, -1.0, 0.0))
-    assert info.up.source == "given" and np.allclose(info.up.up, [0, -1, 0])
+    assert info.room_up.source == "given" and np.allclose(info.room_up.up, [0, -1, 0])
 
 
 def test_fitting_voxels_grow_until_the_points_fit():
@@ -148,7 +150,7 @@ def test_the_learned_sampler_is_refused_for_a_room(parts):
         name = "learned"
 
     with pytest.raises(ValueError, match="sequential"):
-        fit_scene(scanned_room(), config, SceneConfig(), solver=solver, sampler=Learned())
+        fit_room(scanned_room(), config, solver=solver, sampler=Learned())
 
 
 def test_a_single_depth_map_fits_bit_for_bit_as_before():
@@ -209,10 +211,9 @@ def test_seen_from_inside_a_room_a_wall_is_a_wall_and_a_screen_is_not():
     assert cuboid_kind(pts[~hidden], screen, down, inside) == "object"
 
 
-
 def test_a_low_upright_slab_is_furniture_not_a_wall():
     """The back of a sofa has the room on one side like a wall, but its top is far below the room's."""
-    from cuboidcli.fitting.scene import WALL_TOP_GAP_M, low_walls_are_furniture
+    from cuboidcli.fitting.room import WALL_TOP_GAP_M, low_walls_are_furniture
 
     points = np.random.default_rng(0).uniform([0, 0, 0], [4, 3, 2.5], (2000, 3))
     wall = Cuboid([4.0, 1.5, 1.25], [0.005, 1.5, 1.25], np.eye(3), kind="wall")

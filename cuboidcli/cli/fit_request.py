@@ -1,0 +1,119 @@
+"""What ``cuboids fit`` was asked to do, typed: :class:`FitRequest`, made from the command's options, and
+the checks that every option given applies to the input (an option a fit would not read is refused in
+one line, exit 2, rather than dropped)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+from pathlib import Path
+
+from cuboidcli.cli.common import fail
+from cuboidcli.fitting.config import FitConfig
+from cuboidcli.load import SOURCES, LoadOptions
+
+#: FitConfig settings only one kind of input reads: given for the other, they are refused.
+KIND_ONLY = {
+    "voxel_m": "room",
+    "visibility": "room",
+    "up": "room",
+    "grid_step": "frame",
+    "gravity_down": "frame",
+}
+
+
+@dataclass(frozen=True)
+class Outputs:
+    """Where and what to write: ``output`` (a JSON, or a folder for a folder's inputs), the output kinds
+    (:data:`cuboidcli.export.files.OUTPUTS`), whether the GLB holds the points, and a live rerun stream."""
+
+    output: Path | None = None
+    kinds: tuple[str, ...] = ()
+    with_points: bool = False
+    rerun: bool = False
+    quiet: bool = False
+
+
+@dataclass(frozen=True)
+class Run:
+    """Where a folder's inputs run: ``workers`` local processes, or Ray (``ray`` "" = a local Ray, else the
+    cluster's address; None = no Ray); ``skip_existing`` resumes."""
+
+    workers: int = 1
+    ray: str | None = None
+    skip_existing: bool = True
+
+    def describe(self) -> str:
+        if self.ray is not None:
+            return f"Ray at {self.ray}" if self.ray else "a local Ray"
+        return f"{self.workers} processes" if self.workers > 1 else "this process"
+
+
+@dataclass(frozen=True)
+class FitRequest:
+    """One ``cuboids fit``: the input (``path``, and a depth map's photo ``image``), what it is
+    (``source``, :data:`cuboidcli.load.SOURCES`) and whether it is a folder of such inputs, the settings
+    (only those given are set: the rest take the input's defaults), how to read it, the weights, the
+    outputs and where it runs."""
+
+    path: Path
+    image: Path | None
+    source: str | None
+    """depth, photo, scan, sequence; None: a folder of rooms (each told from its files)."""
+    folder: bool
+    config: FitConfig
+    given: frozenset[str]
+    """The FitConfig settings the command line gave."""
+    load: LoadOptions
+    weights: str | None
+    onnx: str | None
+    outputs: Outputs
+    run: Run
+
+    @property
+    def kind(self) -> str:
+        return "room" if self.source is None else SOURCES[self.source]
+
+    def check(self) -> None:
+        """One line and exit 2 for an option that does not apply to this input."""
+        if self.config.solver == "onnx" and self.onnx is None:
+            fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
+        if (self.run.workers > 1 or self.run.ray is not None) and not self.folder:
+            fail(
+                "--workers and --ray fit the inputs of a folder: give a folder of depth maps, images or rooms"
+            )
+        what = "a room" if self.kind == "room" else "a depth map or a photo"
+        for name in sorted(self.given):
+            if KIND_ONLY.get(name, self.kind) != self.kind:
+                fail(f"{_flag(name)} does not apply to {what}; leave it out")
+        if self.kind == "room" and self.config.sampler == "learned":
+            fail("--sampler learned weighs the pixels of a depth map; a room is fitted with sequential")
+        sources = ("scan", "sequence") if self.source is None else (self.source,)
+        default = LoadOptions()
+        for f in fields(LoadOptions):
+            value = getattr(self.load, f.name)
+            if value != getattr(default, f.name) and not any(s in _applies(f.name) for s in sources):
+                fail(f"{_flag(f.name)} does not apply to {what}; leave it out")
+        if self.source == "depth" and self.image is not None and self.image.is_dir():
+            fail("IMAGE is a folder: give it without --depth (depth from the images) or use --depth FOLDER")
+        if self.source == "depth" and self.image is not None and self.folder:
+            fail("--depth FOLDER fits the folder's depth maps without their images; leave IMAGE out")
+        model = self.load.depth_model
+        if self.folder and self.source == "photo" and model is not None and model.partial_depth is not None:
+            fail("--partial-depth belongs to one image; it cannot align every image of a folder")
+
+
+def _applies(name: str) -> tuple[str, ...]:
+    from cuboidcli.load import APPLIES
+
+    return APPLIES[name]
+
+
+def _flag(name: str) -> str:
+    from cuboidcli.cli.options import flags
+
+    special = {"intrinsics": "-K", "depth_model": "--depth-model (and the depth-model options)"}
+    if name in special:
+        return special[name]
+    if name in {f.name for f in fields(FitConfig)}:
+        return flags(name).split("/")[0]
+    return "--" + name.replace("_", "-")

@@ -1,0 +1,71 @@
+"""Where a frame's camera comes from, decided in one place.
+
+In this order: ``-K`` (``fx,fy,cx,cy`` or a JSON file) or ``--camera`` (a preset, scaled to an image of the
+same aspect ratio), the photo's EXIF, a depth model that predicts the focal length, else a default field
+of view (with a warning). The camera's ``source`` says which; the result records it
+(``input.intrinsics_source``). The metres per depth-PNG unit follow the same order: ``--depth-scale``,
+the intrinsics file, the preset, millimetres.
+"""
+
+from __future__ import annotations
+
+from cuboidcli.camera import PRESETS, Camera
+from cuboidcli.io.depth import InputError, intrinsics_for_size, parse_intrinsics
+from cuboidcli.io.photo import DEFAULT_FOV_DEG, centred_intrinsics, default_camera
+
+__all__ = ["DEFAULT_FOV_DEG", "centred_intrinsics", "default_camera", "given_camera", "guessed_note"]
+
+#: Stands in for "no intrinsics given" where only their depth scale is asked for.
+_NO_INTRINSICS = Camera(0.0, 0.0, 0.0, 0.0)
+
+
+def check_preset(preset: str | None) -> None:
+    """InputError naming the presets when ``preset`` is not one."""
+    if preset is not None and preset not in PRESETS:
+        raise InputError(f"unknown --camera {preset!r}; choose one of: {', '.join(PRESETS)}")
+
+
+def given_camera(intrinsics: str | None, preset: str | None, frame: str | None = None) -> Camera | None:
+    """The camera the user gave: ``-K`` (``intrinsics``; a JSON file may hold one entry per ``frame``
+    name) or ``--camera`` (``preset``), not yet sized to the image; None when neither was given."""
+    check_preset(preset)
+    return parse_intrinsics(intrinsics, preset, frame=frame) if intrinsics or preset else None
+
+
+def sized(given: Camera, width: int, height: int, intrinsics: str | None, preset: str | None) -> Camera:
+    """The given camera for a ``width`` x ``height`` image: a preset is scaled to an image of its aspect
+    ratio; ``-K`` must describe the image as it is."""
+    return intrinsics_for_size(given, width, height, None if intrinsics else preset)
+
+
+def resolve_depth_scale(depth_scale: float | None, given: Camera | None, preset: str | None) -> float:
+    """Metres per depth-PNG unit: ``--depth-scale`` > the intrinsics file's > the preset's > millimetres."""
+    if depth_scale is not None:
+        if depth_scale <= 0:
+            raise InputError(f"--depth-scale must be positive (got {depth_scale})")
+        return depth_scale
+    if (given or _NO_INTRINSICS).depth_scale is not None:
+        return given.depth_scale
+    if preset is not None:
+        return float(PRESETS[preset]["depth_scale"])
+    return 0.001
+
+
+def guessed_note(camera: Camera) -> str:
+    """The warning when no source said anything about the lens and the default field of view is assumed."""
+    return (
+        f"no camera intrinsics (no -K, --camera or EXIF focal length): assuming a {DEFAULT_FOV_DEG:g} degree "
+        f"field of view across the long side (fx = {camera.fx:.1f} px); pass -K fx,fy,cx,cy for exact boxes"
+    )
+
+
+def default_for(width: int, height: int, notes: list[str]) -> Camera:
+    """The default field of view's camera, with its warning added to ``notes``."""
+    camera = default_camera(width, height)
+    notes.append(guessed_note(camera))
+    return camera
+
+
+def from_focal(focal_px: float, width: int, height: int, source: str) -> Camera:
+    """A depth model's predicted focal length as the camera (principal point at the image centre)."""
+    return centred_intrinsics(focal_px, width, height, source)
