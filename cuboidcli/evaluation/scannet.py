@@ -22,8 +22,8 @@ and its result is scored against the labels:
   over recall (all points, not 11).
 - **AUC@20 / AUC@5** of the scan's points' distances to the nearest cuboid surface (all cuboids, shell
   too; :func:`.scene.surface_distances`, :func:`.auc.auc`), the number of cuboids and object boxes, the
-  seconds of the fit (reading included) and the angle between the fitted up direction and the scan's +z
-  (degrees; 180 when the fit turned the room upside down).
+  seconds of the fit (reading included) and the angle between the fitted up direction and the normal of
+  the points labelled floor (degrees; 180 when the fit turned the room upside down).
 
 Pooled over scans, recalls, precisions and AP are recomputed from the summed counts and the joint
 ranking; the up error is the largest; the other numbers are means over the scans.
@@ -35,7 +35,7 @@ import math
 import os
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -53,6 +53,8 @@ BOX_CLASSES = {
 }  # fmt: skip
 #: IoU thresholds of recall and AP; per-class recall is at the first.
 IOU_THRESHOLDS = (0.25, 0.5)
+#: The NYU40 class of the floor.
+FLOOR_CLASS = 2
 #: An object box lies on one labelled object when at least this share of the points inside it do.
 ON_OBJECT_SHARE = 0.5
 _BOXES, _POINTS, _INSTANCE, _CLASS = "_bbox.npy", "_vert.npy", "_ins_label.npy", "_sem_label.npy"
@@ -83,6 +85,9 @@ class ScanTruth:
     classes: np.ndarray
     instance: np.ndarray | None
     semantic: np.ndarray | None
+    up: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
+    """(3,) the normal of the points labelled floor (:data:`FLOOR_CLASS`), signed towards +z; +z without
+    them. Some scans' floors are tilted in their frame (by up to 15 degrees)."""
 
 
 def read_truth(folder: str | os.PathLike, name: str) -> ScanTruth:
@@ -106,7 +111,13 @@ def read_truth(folder: str | os.PathLike, name: str) -> ScanTruth:
         labels.append(np.load(path).astype(np.int64).ravel() if vert.is_file() and path.is_file() else None)
         if labels[-1] is not None and len(labels[-1]) != len(points):
             raise ValueError(f"{name}{suffix}: {len(labels[-1])} labels for {len(points)} points")
-    return ScanTruth(name, points, boxes, raw[:, 6].astype(np.int64), *labels)
+    truth = ScanTruth(name, points, boxes, raw[:, 6].astype(np.int64), *labels)
+    if truth.semantic is not None and np.sum(truth.semantic == FLOOR_CLASS) >= 100:
+        floor = points[truth.semantic == FLOOR_CLASS]
+        d = floor - floor.mean(0)
+        normal = np.linalg.eigh(d.T @ d)[1][:, 0]
+        return replace(truth, up=normal * np.sign(normal[2]))
+    return truth
 
 
 def fit_scan(fitter, path: str | os.PathLike):
@@ -220,7 +231,7 @@ def scan_metrics(fit: ScanFit, truth: ScanTruth) -> dict:
     for t in AUC_M:
         row[auc_key(100.0 * t)] = 100.0 * auc(dist, t)
     up = fit.up / max(float(np.linalg.norm(fit.up)), 1e-12)
-    row["up_error_deg"] = math.degrees(math.acos(float(np.clip(up[2], -1.0, 1.0))))
+    row["up_error_deg"] = math.degrees(math.acos(float(np.clip(up @ truth.up, -1.0, 1.0))))
     row["seconds"] = fit.seconds
     row["stop_reason"] = fit.stop_reason
     row["class_labelled"], row["class_matched"] = {}, {}
