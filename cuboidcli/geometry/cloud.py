@@ -199,12 +199,11 @@ def room_up(
     :data:`HINT_TIE` of it (a near tie: the hint, the input's convention or its cameras' up, decides). A
     depth image in a camera's frame (:func:`is_camera_view`) takes the axis nearest that camera's up, -y,
     as a frame does (a camera is rarely upside down or rolled past 45 degrees): one view of a wall with
-    a ceiling strip reads as well on its side or upside down. The
-    chosen axis settles on its surfaces (:func:`settle_axis`) and becomes its floor's normal
-    (:func:`floor_normal`); the horizontal axes are made perpendicular to it. Without a Manhattan
-    frame, or when the chosen axis carries under ``min_support`` of the normals and lies more than 45
-    degrees from the hint, the hint is used as it is. A confidence under :data:`UNSURE` comes with a
-    warning."""
+    a ceiling strip reads as well on its side or upside down. The chosen axis settles on its surfaces
+    (:func:`settle_axis`) and becomes its floor's normal (:func:`floor_normal`); the horizontal axes are
+    made perpendicular to it. Without a Manhattan frame, or when the chosen axis carries under
+    ``min_support`` of the normals and lies more than 45 degrees from the hint, the hint is used as it is.
+    A confidence under :data:`UNSURE` comes with a warning."""
     hint = np.asarray(hint, dtype=np.float64)
     hint = hint / np.linalg.norm(hint)
     source = "estimated"
