@@ -113,11 +113,23 @@ def read_truth(folder: str | os.PathLike, name: str) -> ScanTruth:
             raise ValueError(f"{name}{suffix}: {len(labels[-1])} labels for {len(points)} points")
     truth = ScanTruth(name, points, boxes, raw[:, 6].astype(np.int64), *labels)
     if truth.semantic is not None and np.sum(truth.semantic == FLOOR_CLASS) >= 100:
-        floor = points[truth.semantic == FLOOR_CLASS]
-        d = floor - floor.mean(0)
-        normal = np.linalg.eigh(d.T @ d)[1][:, 0]
-        return replace(truth, up=normal * np.sign(normal[2]))
+        return replace(truth, up=_floor_normal(points[truth.semantic == FLOOR_CLASS]))
     return truth
+
+
+def _floor_normal(floor: np.ndarray, band_m: float = 0.03) -> np.ndarray:
+    """(3,) the normal, towards +z, of the plane through points (N, 3) labelled floor: least squares,
+    twice refitted on the points within ``band_m`` of it (a rug or a mislabelled box stays out)."""
+    keep = np.ones(len(floor), dtype=bool)
+    for _ in range(3):
+        centre = floor[keep].mean(0)
+        d = floor[keep] - centre
+        normal = np.linalg.eigh(d.T @ d)[1][:, 0]
+        near = np.abs((floor - centre) @ normal) < band_m
+        if near.sum() < 100:
+            break
+        keep = near
+    return normal * np.sign(normal[2])
 
 
 def fit_scan(fitter, path: str | os.PathLike):
