@@ -75,7 +75,7 @@ def point_box_distance(points: np.ndarray, cuboids: list[Cuboid]) -> np.ndarray:
     return surface_distances(points, cuboids)[0]
 
 
-def _iou_matrix(pred: list[Cuboid], gt: list[Cuboid]) -> np.ndarray:
+def near_iou_matrix(pred: list[Cuboid], gt: list[Cuboid]) -> np.ndarray:
     """(len(pred), len(gt)) IoU as :func:`.iou.iou_matrix`, skipping pairs whose circumscribed spheres
     are apart (their IoU is 0): a room has dozens of boxes and the exact IoU costs about a millisecond."""
     out = np.zeros((len(pred), len(gt)))
@@ -160,8 +160,8 @@ def _planar_iou_matrix(pred: list[Cuboid], gt: list[Cuboid]) -> np.ndarray:
 
 #: The two groups of boxes matched one to one: (key prefix, count key suffix, cuboid kinds, IoU matrix).
 _GROUPS = (
-    ("object", "objects", frozenset({"object"}), _iou_matrix),
-    ("part", "parts", frozenset({"object"}), _iou_matrix),
+    ("object", "objects", frozenset({"object"}), near_iou_matrix),
+    ("part", "parts", frozenset({"object"}), near_iou_matrix),
     ("shell", "shell", SHELL_KINDS, _planar_iou_matrix),
 )
 

@@ -112,3 +112,16 @@ def test_two_tables_a_hand_apart_are_two_objects(monkeypatch):
     assert len(two) == 2 and all(o.cuboids == (0,) for o in two)
     monkeypatch.setattr(objects_module, "SEED_REACH", objects_module.REACH)
     assert len(group_objects(pts, labels, cuboids, up, VOXEL)) == 1
+
+
+def test_scores_rank_a_standing_table_above_a_floating_scrap():
+    pts, labels, cuboids = _room()
+    scrap = _grid((3.0, 3.0, 1.5), (3.3, 3.15, 1.5))  # a loose patch of points in the air
+    pts = np.concatenate([pts, scrap])
+    labels = np.concatenate([labels, np.full(len(scrap), -1, dtype=np.int32)])
+    objects = group_objects(pts, labels, cuboids, np.array([0.0, 0.0, 1.0]), VOXEL)
+    assert all(0.0 <= o.score <= 1.0 for o in objects)
+    assert [o.to_dict(0)["score"] for o in objects] == [round(o.score, 4) for o in objects]
+    tables = [o for o in objects if o.cuboids == (2,)]
+    (floating,) = [o for o in objects if o.box.center[2] > 1.0]
+    assert min(t.score for t in tables) > 3.0 * floating.score
