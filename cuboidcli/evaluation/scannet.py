@@ -134,7 +134,7 @@ def _floor_normal(floor: np.ndarray, band_m: float = 0.03) -> np.ndarray:
 
 def fit_scan(fitter, path: str | os.PathLike):
     """Fit one scan file as ``cuboids fit`` does, with ``fitter``'s settings: the one call into the API."""
-    return fitter.fit_scene(path)
+    return fitter.fit(path)
 
 
 def _document(result) -> dict:

@@ -109,6 +109,7 @@ def room_input(
         down=-up.up,
         viewpoint=viewpoint,
         room=RoomFitting(voxel, visibility, up, room.order, inverse),
+        warnings=[up.warning] if up.warning else [],
         timing_s=timing,
         started=t0,
     )
