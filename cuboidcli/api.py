@@ -26,7 +26,8 @@ from pathlib import Path
 import numpy as np
 
 from cuboidcli.camera import Camera
-from cuboidcli.fitting.config import FitConfig, resolve_device
+from cuboidcli.fitting.checks import LOAD_CHECKS, check_all
+from cuboidcli.fitting.config import CHECKS, FitConfig, resolve_device
 from cuboidcli.fitting.parts import SAMPLERS as SAMPLERS  # the names the estimator accepts, registered
 from cuboidcli.fitting.parts import SOLVERS as SOLVERS  # in cuboidcli.fitting.parts
 from cuboidcli.io.depth import read_camera as read_camera  # cb.read_camera
@@ -110,7 +111,11 @@ class Fitter:
             load["camera"] = load.pop("camera_preset")
         if options is not None and load:
             raise TypeError("give the loading options either as options= or as keywords, not both")
-        options = self._depth_model(options or LoadOptions(**load), x, camera)
+        options = options or LoadOptions(**load)
+        _check_load(options)
+        if seed is not None:
+            check_all(CHECKS, {"seed": seed})
+        options = self._depth_model(options, x, camera)
         inp = load_input(x, options, camera=camera, image=image, rgb=rgb, progress=fuse_progress)
         warn_all(inp.notes)
         return self.fit_input(inp, options, seed=seed, progress=progress)
@@ -141,12 +146,15 @@ class Fitter:
 
         config = self.config.for_kind(inp.kind)
         if seed is not None:
-            config = replace(config, seed=int(seed))
+            config = replace(config, seed=int(seed))  # checked by fit(); a numpy integer made one for JSON
         if inp.kind == "room":
             warm_up_room(self.solver, self.sampler)
         fit_in = inp.fit_input(config)
         cuboids, info = estimate(fit_in, config, solver=self.solver, sampler=self.sampler, progress=progress)
-        if inp.depth_seconds is not None:
+        if inp.lines_seconds is not None:  # the photo's lines, found at load time: stage "lines"
+            info.timing_s = {"lines": round(inp.lines_seconds, 6), **info.timing_s}
+            info.timing_s["total"] = round(info.timing_s.get("total", 0.0) + inp.lines_seconds, 6)
+        if inp.depth_seconds is not None:  # listed first
             info.add_depth_time(inp.depth_seconds)
         extra = {**self._files(), "load": (options or LoadOptions()).to_dict(inp.source)}
         record = result_record(inp, cuboids, info, config, self.solver.name, self.sampler.name, extra)
@@ -175,6 +183,16 @@ def fit(
     return fitter.fit(x, camera, rgb=rgb, progress=progress)
 
 
+def _check_load(options: LoadOptions) -> None:
+    """The checks of how an input is read (:data:`~cuboidcli.fitting.checks.LOAD_CHECKS`), a depth model's
+    scale, shift, camera height and kind among them: a one-line ValueError, as the command line's."""
+    values = {f.name: getattr(options, f.name) for f in dataclasses.fields(options)}
+    model = values.pop("depth_model")
+    if model is not None and not isinstance(model, str | os.PathLike):
+        values.update({name: getattr(model, name) for name in ("kind", "scale", "shift", "camera_height_m")})
+    check_all(LOAD_CHECKS, values)
+
+
 def _str_or_none(p) -> str | None:
     return None if p is None else str(p)
 
@@ -184,8 +202,7 @@ def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarra
     TUM: 1/5000), .npy/.npz in metres, .exr in metres. Raises ValueError for unusable files."""
     from cuboidcli.io.depth import read_depth as _read
 
-    if depth_scale <= 0:
-        raise ValueError(f"depth_scale must be positive (got {depth_scale})")
+    check_all(LOAD_CHECKS, {"depth_scale": depth_scale})
     return _read(path, depth_scale)
 
 

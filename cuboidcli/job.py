@@ -90,10 +90,8 @@ class Job:
     def expected(self, out_json: Path) -> list[Path]:
         """The files a complete result has, the JSON last. A room's overlays are named after the frames
         they are drawn on, known only once it is read: they are not listed."""
-        kinds = set(self.outputs)
-        scenes = tuple(k for k in self.outputs if k not in ("glb", "ply", "overlay"))
-        overlay = "overlay" in kinds and self.kind == "frame"
-        return output_files(out_json, glb="glb" in kinds, ply="ply" in kinds, overlay=overlay, scenes=scenes)
+        kinds = [k for k in self.outputs if k != "overlay" or self.kind == "frame"]
+        return output_files(out_json, kinds)
 
     def is_complete(self, out_json: Path) -> bool:
         """The input's outputs exist and its JSON is a valid "cuboids/1" result fitted with these settings
@@ -129,11 +127,30 @@ def fitter_for(config: FitConfig, weights: str | None, onnx: str | None):
     return Fitter(config, weights=weights, onnx=onnx, device=config.device)
 
 
+#: Of several scan files in a room's own sub-folder, the one ScanNet fits (its cleaned, decimated mesh).
+SCANNET_MESH = "_vh_clean_2.ply"
+
+
 def rooms_in(folder: Path) -> list[Path]:
-    """The rooms of a folder, sorted: its scan files and its sub-folders laid out as sequences."""
+    """The rooms of a folder, sorted: its scan files, its sub-folders laid out as sequences, and its
+    sub-folders that hold a room's scan file (ScanNet's ``scans/scene0000_00/scene0000_00_vh_clean_2.ply``:
+    the ``_vh_clean_2.ply`` of several, else the only one), one level deeper."""
     from cuboidcli.load.room import is_room_input
 
-    return sorted(p for p in Path(folder).iterdir() if not p.name.startswith(".") and is_room_input(p))
+    rooms = []
+    for p in sorted(Path(folder).iterdir()):
+        if p.name.startswith("."):
+            continue
+        if is_room_input(p):
+            rooms.append(p)
+        elif p.is_dir():
+            scans = sorted(
+                q for q in p.iterdir() if q.is_file() and not q.name.startswith(".") and is_room_input(q)
+            )
+            preferred = [q for q in scans if q.name.endswith(SCANNET_MESH)]
+            if len(preferred) == 1 or len(scans) == 1:
+                rooms.append((preferred or scans)[0])
+    return rooms
 
 
 def is_rooms_folder(path: Path) -> bool:

@@ -11,7 +11,10 @@ principal point at the image centre) and is compared with its true depth map:
   crop keeps the focal length in pixels);
 - rot90: the down direction of the photo turned by 90 degrees (np.rot90, the up hint turned with it),
   mapped back, against that of the photo as stored;
-- the time per photo, and that of a 12 MP photo (an NYU frame scaled to 4000x3000).
+- the time per photo, and that of a 12 MP photo (an NYU frame scaled to 4000x3000);
+- the focal length ``cuboids fit`` takes for the photo alone (no -K, no EXIF): the lines' when their
+  confidence reaches ``load.camera.FOCAL_SURE``, else the default field of view (the built-in depth network
+  predicts none), on the full frame and on the crop.
 
     python scripts/eval_photo_lines.py [--data ../shared/data] [--draw /tmp]
 
@@ -35,6 +38,8 @@ from cuboidcli.geometry.gravity import estimate_gravity
 from cuboidcli.geometry.lines import detect_segments
 from cuboidcli.geometry.vanishing import LineEstimate, estimate_from_lines
 from cuboidcli.io.depth import read_depth, read_rgb
+from cuboidcli.io.photo import default_camera
+from cuboidcli.load.camera import FOCAL_SURE
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 CROP = (480, 360)
@@ -118,6 +123,8 @@ def measure(name: str, rgb: np.ndarray, depth_m: np.ndarray, cam: Camera) -> tup
         "full_conf": 0.0 if est is None else est.focal_confidence,
         "crop": None if crop is None else crop.focal_px,
         "crop_conf": 0.0 if crop is None else crop.focal_confidence,
+        "full_default": default_camera(w, h).fx,
+        "crop_default": default_camera(*CROP).fx,
         "segments": 0 if est is None else est.n_segments,
         "ms": 1000 * wall,
         "cpu_ms": 1000 * cpu,
@@ -177,6 +184,18 @@ def summary(rows: list[dict]) -> None:
     print(f"down within 5 deg of the depth's: {within('down', 5.0)}; with the true K: {within('known', 5.0)}")
     print(f"rot90 within 3 deg: {within('rot90', 3.0)}")
     print(f"fx within 10 %: full frame {focal_within('full')}; 480x360 crop {focal_within('crop')}")
+
+    def used_within(key, bound=0.10):
+        """The fit's fx: the lines' from FOCAL_SURE, else the default field of view."""
+        lines = [r[key + "_conf"] >= FOCAL_SURE and r[key] is not None for r in rows]
+        used = [r[key] if ok else r[key + "_default"] for r, ok in zip(rows, lines, strict=True)]
+        good = sum(abs(f / r["fx"] - 1) <= bound for f, r in zip(used, rows, strict=True))
+        return f"{good}/{len(rows)} ({sum(lines)} from the lines)"
+
+    print(
+        f"the fit's fx (lines from confidence {FOCAL_SURE:g}, else the default field of view) within 10 %: "
+        f"full frame {used_within('full')}; 480x360 crop {used_within('crop')}"
+    )
 
 
 def time_12mp(rgb: np.ndarray) -> None:

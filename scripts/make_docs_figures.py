@@ -14,7 +14,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from cuboidcli.export import write_result_glb
+from cuboidcli.export import FittedData, write
 from cuboidcli.export.overlay import render_images, write_png
 from cuboidcli.io.depth import read_depth, read_rgb
 from cuboidcli.io.result import read_result
@@ -50,17 +50,10 @@ def main() -> None:
         raise SystemExit("--with-points needs the depth map: pass --depth")
 
     overlay = render_images(result.camera, result.cuboids, rgb=rgb, depth_m=depth_m)["overlay"]
-    paths = [
-        write_png(args.out_dir / "demo_overlay.png", overlay),
-        write_result_glb(
-            result,
-            args.out_dir / "demo.glb",
-            depth_m=depth_m,
-            rgb=rgb,
-            with_points=args.with_points,
-            point_step=args.step,
-        ),
-    ]
+    fitted = FittedData.of_record(result, depth_m=depth_m, rgb=rgb)
+    glb = write(fitted, None, (), with_points=args.with_points, point_step=args.step,
+                paths={"glb": args.out_dir / "demo.glb"})["glb"]  # fmt: skip
+    paths = [write_png(args.out_dir / "demo_overlay.png", overlay), glb]
     for p in paths:
         print(f"wrote {p} ({p.stat().st_size / 1024:.0f} KiB)")
 

@@ -69,6 +69,8 @@ def corpus(tmp_path_factory, nyu_camera) -> Path:
     torch.save({**good, "state_dict": reshaped}, root / "wrong_shape.pt")
     torch.save({"config": {"maps": 4}, "state_dict": {}}, root / "sampler_kind.pt")
     torch.save({"config": {"channels": [8]}, "state_dict": {}}, root / "depth_kind.pt")
+    np.save(root / "complex.npy", np.ones((48, 64), np.complex64))
+    np.savez(root / "two.npz", a=np.ones((48, 64)), b=np.ones((48, 64)))
     png = (SAMPLE / "sample_depth.png").read_bytes()
     (root / "truncated_depth.png").write_bytes(png[: len(png) // 3])
     (root / "text_depth.png").write_text("not a png")
@@ -84,6 +86,19 @@ def corpus(tmp_path_factory, nyu_camera) -> Path:
         (root / name).write_text(json.dumps(doc))
     (root / "not_json.json").write_text("{'schema': ")
     (root / "binary.json").write_bytes(b'{"fx": 5\n\xd0\xcf\x11\xe0' + bytes(range(256)))
+    room = np.random.default_rng(0).uniform(0.0, 3.0, (5000, 3))
+    for name, points in {
+        "nan_room.npy": np.where(np.arange(5000)[:, None] == 10, np.nan, room),
+        "inf_room.npy": np.where(np.arange(5000)[:, None] == 10, np.inf, room),
+        "huge_room.npy": room * 1e6,
+        "tiny_room.npy": room * 1e-6,
+        "no_points.npy": room[:0],
+    }.items():
+        np.save(root / name, points)
+    (root / "no_vertices.ply").write_text(
+        "ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nproperty float y\nproperty float z\n"
+        "end_header\n"
+    )
     write_room_dataset(root / "dataset", nyu_camera.scaled(0.25))
     for name, splits in (("bad_splits", b"\x89PNG\r\n"), ("list_splits", b'["a", "b"]')):
         write_room_dataset(root / name, nyu_camera.scaled(0.25))
@@ -142,6 +157,19 @@ CASES = {
         "cannot decode",
     ),
     "text file named .png": (["fit", "--depth", "{c}/text_depth.png"], "cannot decode"),
+    # point clouds
+    "cloud with a NaN point": (["fit", "{c}/nan_room.npy"], "1 of 5000 points have NaN or inf coordinates"),
+    "cloud with an inf point": (["fit", "{c}/inf_room.npy"], "1 of 5000 points have NaN or inf coordinates"),
+    "cloud a thousand km across": (["fit", "{c}/huge_room.npy"], "too large for a room; check --unit"),
+    "cloud a few microns across": (["fit", "{c}/tiny_room.npy"], "too small for a room; check --unit"),
+    "PLY without vertices": (["fit", "{c}/no_vertices.ply"], "has 0 points"),
+    "array of no points": (["fit", "{c}/no_points.npy"], "holds no points ((N, 3) or (N, 6)"),
+    # depth arrays
+    "complex depth": (["fit", "--depth", "{c}/complex.npy", "--camera", "nyu"], "holds complex numbers"),
+    "npz of two unnamed arrays": (
+        ["fit", "--depth", "{c}/two.npz", "--camera", "nyu"],
+        "holds several arrays (a, b) and none is named depth",
+    ),
     # results for export
     "result without camera": (EXPORT, "field 'camera' is missing", "no_camera.json"),
     "result without fx": (EXPORT, "field 'camera.fx' is missing", "no_fx.json"),
@@ -197,7 +225,7 @@ CASES = {
         ["train", "finetune", "{c}/dataset", "--sampler-weights", "{c}/object.pt", "--output", "{out}/run"],
         "refused",
     ),
-    "synth, no frames": (["synth", "{out}/synth", "-n", "0"], "at least 1 frame"),
+    "synth, no frames": (["synth", "{out}/synth", "-n", "0"], "--count must be a whole number from 1"),
 }
 
 

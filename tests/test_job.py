@@ -84,3 +84,25 @@ def test_a_bad_frame_fails_with_one_line(tmp_path):
     outcome = fit_task(job, str(bad), str(tmp_path / "bad.json"))
     assert outcome.status == "failed" and "8-bit" in outcome.message
     assert not (tmp_path / "bad.json").exists()
+
+
+def test_a_folder_of_rooms_as_scannet_lays_them_out(tmp_path):
+    """``scans/sceneXXXX_XX/sceneXXXX_XX_vh_clean_2.ply``, one level deeper, beside plain scan files: each
+    room once (ScanNet's cleaned mesh of several PLYs), folders without one scan file left out."""
+    from cuboidcli.job import is_rooms_folder, rooms_in
+
+    def ply(path):
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nend_header\n")
+        return path
+
+    scans = tmp_path / "scans"
+    deep = ply(scans / "scene0000_00" / "scene0000_00_vh_clean_2.ply")
+    ply(scans / "scene0000_00" / "scene0000_00_vh_clean.ply")
+    single = ply(scans / "scene0001_00" / "room.ply")
+    ply(scans / "two" / "a.ply")
+    ply(scans / "two" / "b.ply")
+    top = ply(scans / "loose.ply")
+    (scans / "empty").mkdir()
+    assert rooms_in(scans) == [top, deep, single]
+    assert is_rooms_folder(scans)

@@ -131,9 +131,9 @@ def test_the_help_lists_every_registered_part_with_its_help():
 
 
 def test_fitconfig_checks_itself_and_names_the_flag_on_the_command_line():
-    with pytest.raises(ValueError, match=r"^hypotheses must be at least 1 \(got 0\)$"):
+    with pytest.raises(ValueError, match=r"^hypotheses must be a whole number from 1 to 100000 \(got 0\)$"):
         FitConfig(hypotheses=0)
-    with pytest.raises(ValueError, match=r"^local_fraction must be between 0 and 1 \(got 2\)$"):
+    with pytest.raises(ValueError, match=r"^local_fraction must be a number from 0 to 1 \(got 2\)$"):
         dataclasses.replace(FitConfig(), local_fraction=2)
     with pytest.raises(ValueError, match=r"^align 'up': choose free, gravity, manhattan$"):
         FitConfig(align="up")
@@ -146,9 +146,9 @@ def test_fitconfig_checks_itself_and_names_the_flag_on_the_command_line():
     from cuboidcli.cli.main import app
 
     r = CliRunner().invoke(app, ["fit", "--depth", "d.png", "--max-batches", "0"])
-    assert r.exit_code == 2 and "--max-batches must be at least 1 (got 0)" in r.output
+    assert r.exit_code == 2 and "--max-batches must be a whole number from 1 to 1000 (got 0)" in r.output
     r = CliRunner().invoke(app, ["fit", "--depth", "d.png", "--slab-max", "-1"])
-    assert r.exit_code == 2 and "--slab-max must be positive metres (got -1.0)" in r.output
+    assert r.exit_code == 2 and "--slab-max must be a number > 0 and <= 1000 m (got -1.0)" in r.output
 
 
 def test_device_resolution_is_one_function(monkeypatch):

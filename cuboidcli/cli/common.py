@@ -153,14 +153,19 @@ def progress_bar(label: str, *columns, **settings) -> Progress:
     return Progress(TextColumn(label), BarColumn(), MofNCompleteColumn(), *more, console=console, **settings)
 
 
-def run_as_module(command, argv: list[str] | None, prog: str) -> None:
+def run_as_module(command, argv: list[str] | None, prog: str, prepare=None) -> None:
     """Run one command function as a program of its own (the ``python -m cuboidcli....`` entry points):
-    ``argv`` None means the process's arguments. Returns when it succeeds, else exits with its status."""
+    ``argv`` None means the process's arguments; ``prepare`` turns the click command made of the function
+    into the one that runs (the table of options applied to it). Returns when it succeeds, else exits with
+    its status."""
     quiet_libraries()
     app = typer.Typer(add_completion=False)
     app.command()(command)
+    program = typer.main.get_command(app)
+    if prepare is not None:
+        program = prepare(program)
     try:
-        typer.main.get_command(app).main(args=sys.argv[1:] if argv is None else list(argv), prog_name=prog)
+        program.main(args=sys.argv[1:] if argv is None else list(argv), prog_name=prog)
     except SystemExit as e:
         if e.code not in (0, None):
             raise

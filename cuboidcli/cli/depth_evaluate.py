@@ -56,7 +56,9 @@ def evaluate_depth_cmd(
 
 def main(argv: list[str] | None = None) -> None:
     """``python -m cuboidcli.cli.depth_evaluate ARGV`` (``argv`` None: the process's arguments)."""
-    run_as_module(evaluate_depth_cmd, argv, PROG)
+    from cuboidcli.cli.option_table import check_options
+
+    run_as_module(evaluate_depth_cmd, argv, PROG, prepare=lambda c: check_options(c, "depth_evaluate"))
 
 
 if __name__ == "__main__":

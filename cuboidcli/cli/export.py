@@ -94,9 +94,12 @@ def export(
     opset: int = typer.Option(17, "--opset", help="ONNX opset for --onnx."),
 ) -> None:
     """Convert a saved result to files other tools open, or export the neural solver to ONNX."""
-    given = (("html", html), ("mjcf", mjcf), ("urdf", urdf), ("usd", usd), ("rrd", rrd))
-    scenes = {kind: path for kind, path in given if path is not None}
-    wants_files = any(p is not None for p in (glb, ply, obj, overlay)) or bool(scenes)
+    given = (
+        ("glb", glb), ("ply", ply), ("obj", obj), ("overlay", overlay),
+        ("html", html), ("mjcf", mjcf), ("urdf", urdf), ("usd", usd), ("rrd", rrd),
+    )  # fmt: skip
+    files = {kind: path for kind, path in given if path is not None}
+    wants_files = bool(files)
     if onnx is None and not wants_files:
         fail(
             "nothing to export: pass --glb, --ply, --obj, --overlay, --html, --mjcf, --urdf, --usd or --rrd "
@@ -104,11 +107,12 @@ def export(
         )
     if wants_files and result_json is None:
         fail("--glb/--ply/--obj/--overlay and the scene files convert a result: pass RESULT.json first")
-    for kind in scenes:
+    for kind in files:
         from cuboidcli.export import missing_extra
 
-        if missing_extra(kind):
-            fail(missing_extra(kind))
+        message = missing_extra(kind)
+        if message:
+            fail(message)
     if weights is not None and onnx is None:
         fail("--weights only applies to --onnx PATH")
     if with_points and glb is None:
@@ -116,9 +120,7 @@ def export(
     if onnx is not None:
         _export_onnx(onnx, weights, opset)
     if wants_files:
-        _export_result(
-            result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step, scenes
-        )
+        _export_result(result_json, files, image, depth, depth_scale, with_points, step)
 
 
 def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
@@ -141,10 +143,10 @@ def _export_onnx(onnx: Path, weights: Path | None, opset: int) -> None:
     out.print(f"wrote {path}", highlight=False)
 
 
-def _export_result(
-    result_json, glb, ply, obj, overlay, image, depth, depth_scale, with_points, step, scenes
-) -> None:
-    from cuboidcli.export import export_result, unlevelled_warning
+def _export_result(result_json, files, image, depth, depth_scale, with_points, step) -> None:
+    """Write ``files`` {output kind: main file} of the saved result ``result_json``: :func:`write` of its
+    record with the depth map and image it was fitted on."""
+    from cuboidcli.export import FittedData, unlevelled_warning, write
     from cuboidcli.io.depth import read_depth
     from cuboidcli.io.result import read_result
 
@@ -153,12 +155,12 @@ def _export_result(
             result = read_result(result_json)
         except ValueError as e:
             fail(f"{result_json}: {e}; give a cuboids/1 result written by cuboids fit")
-        warning = unlevelled_warning(result, scenes)
+        warning = unlevelled_warning(result, files)
         if warning:
             console.print(f"[yellow]warning:[/] {warning}", highlight=False)
         depth = depth if depth is not None else _input_file(result, "depth")
         image = image if image is not None else _input_file(result, "image")
-        if (ply is not None or with_points) and depth is None:
+        if ("ply" in files or with_points) and depth is None:
             fail(
                 "--ply and --with-points need the input points: pass --depth DEPTH (the map the result was "
                 "fitted on)"
@@ -167,18 +169,8 @@ def _export_result(
         depth_m = None if depth is None else read_depth(depth, scale)
         rgb = None if image is None else _image(image, result.camera)
         try:
-            written = export_result(
-                result,
-                glb_path=glb,
-                ply_path=ply,
-                obj_path=obj,
-                overlay_path=overlay,
-                depth_m=depth_m,
-                rgb=rgb,
-                with_points=with_points,
-                point_step=step,
-                scenes=scenes,
-            )
+            fitted = FittedData.of_record(result, depth_m=depth_m, rgb=rgb)
+            written = write(fitted, None, (), with_points=with_points, point_step=step, paths=files)
         except (ValueError, OSError, ImportError) as e:
             fail(str(e))
     for path in written.values():

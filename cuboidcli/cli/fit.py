@@ -254,6 +254,11 @@ def _input(image: Path | None, depth: Path | None) -> tuple[Path, str | None, bo
         return depth, "depth", depth.is_dir()
     if is_room_input(image):
         return image, "sequence" if image.is_dir() else "scan", False
+    if image.suffix.lower() in (".npy", ".npz"):  # an array is no photo: points, or a depth map
+        fail(
+            f"{image} holds no points ((N, 3) or (N, 6) with N > 6, or an .npz with 'points'); a depth map "
+            f"is given with --depth {image}"
+        )
     if image.is_dir():
         return (image, None, True) if is_rooms_folder(image) else (image, "photo", True)
     return image, "photo", False

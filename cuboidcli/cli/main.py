@@ -12,6 +12,7 @@ from typer.core import TyperGroup
 
 from cuboidcli import __version__
 from cuboidcli.cli.common import quiet_libraries, report_crash
+from cuboidcli.cli.option_table import check_options
 
 #: Set to 1 for the same effect as ``cuboids --debug``.
 DEBUG_ENV = "CUBOIDS_DEBUG"
@@ -45,7 +46,8 @@ class CuboidsGroup(TyperGroup):
     Ctrl-C) pass through; a closed output pipe ends the command quietly (status 1); any other exception
     is an internal error: its traceback goes to a file
     (:func:`report_crash`) and the command exits with status 1, unless ``--debug`` asks to see it.
-    The groups of :data:`LAZY_GROUPS` are built when first asked for.
+    The groups of :data:`LAZY_GROUPS` are built when first asked for, and every command's options are
+    checked against the table of options (:func:`~cuboidcli.cli.option_table.check_options`).
     """
 
     def list_commands(self, ctx: click.Context) -> list[str]:
@@ -54,7 +56,9 @@ class CuboidsGroup(TyperGroup):
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
         if name in LAZY_GROUPS and name not in self.commands:
             self.add_command(importlib.import_module(LAZY_GROUPS[name]).group(), name)
-        return super().get_command(ctx, name)
+        command = super().get_command(ctx, name)
+        # every option checked against the one table as it is parsed, whichever module defines it
+        return None if command is None else check_options(command, name)
 
     def invoke(self, ctx: click.Context):
         if not _debug(ctx):

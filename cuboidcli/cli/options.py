@@ -152,15 +152,15 @@ def fit_config(options: dict, base: FitConfig | None = None, samplers=SAMPLERS, 
     every registered one). ``--gravity`` text is parsed, ``fast`` sets prescore_points, ``device`` (auto) is
     resolved; other options are ignored."""
     settings = {name: options[name] for name in FIELDS if options.get(name) is not None}
+    if "gravity_down" in settings:
+        settings["gravity_down"] = parse_gravity(settings["gravity_down"])
+    if "device" in settings:
+        settings["device"] = resolve_device(settings["device"])
     offered = {"sampler": tuple(samplers), "solver": tuple(solvers)}
     for name, value in settings.items():
         error = setting_error(name, value, flags(name).split("/")[0], offered.get(name))
         if error is not None:
             fail(error)
-    if "gravity_down" in settings:
-        settings["gravity_down"] = parse_gravity(settings["gravity_down"])
-    if "device" in settings:
-        settings["device"] = resolve_device(settings["device"])
     if options.get("fast"):
         settings["prescore_points"] = FAST_PRESCORE_POINTS
     try:

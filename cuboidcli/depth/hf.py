@@ -37,6 +37,10 @@ from cuboidcli.depth.image import check_rgb
 from cuboidcli.depth.scale import DepthScaling
 
 HF_PREFIX = "hf:"
+#: The files save_pretrained writes a model's weights to: one of them, or the index of its shards.
+WEIGHT_FILES = (
+    "model.safetensors", "model.safetensors.index.json", "pytorch_model.bin", "pytorch_model.bin.index.json",
+)  # fmt: skip
 EXTRA_HINT = "pip install 'cuboids[hf]'"
 
 #: model_type -> (the kind it predicts, None: read from the config; the kinds a user may ask for).
@@ -107,6 +111,11 @@ class HFDepthEstimator:
                 f"depth model folder {model} has no config.json: expected a Hugging Face model saved with "
                 "save_pretrained (or a .pt / .onnx file)"
             )
+        if self.repo_id is None and not any((Path(model) / name).is_file() for name in WEIGHT_FILES):
+            raise ValueError(
+                f"depth model folder {model} has a config.json but no weights ({', '.join(WEIGHT_FILES)}): "
+                "save the model itself with save_pretrained, not only its config"
+            )
         transformers = _transformers()
         config = self._load(transformers.AutoConfig)
         model_type = getattr(config, "model_type", None)
@@ -135,29 +144,38 @@ class HFDepthEstimator:
         bars = transformers.utils.logging.is_progress_bar_enabled()
         transformers.utils.logging.disable_progress_bar()
         try:
-            net = self._load(transformers.AutoModelForDepthEstimation)
+            net, info = self._load(transformers.AutoModelForDepthEstimation, output_loading_info=True)
         finally:
             if bars:
                 transformers.utils.logging.enable_progress_bar()
+        missing = sorted(info.get("missing_keys") or ())
+        if missing:  # transformers would start them at random and only log a table of their names
+            raise ValueError(
+                f"depth model {self.name}: its weights lack {len(missing)} of the model's parameters "
+                f"({missing[0]}, ...), which would start random; save the whole model with save_pretrained"
+            )
         self.net = net.to(self.device).eval()
 
     # --- loading -----------------------------------------------------------------------------------------
 
-    def _load(self, auto_class):
-        """``auto_class.from_pretrained(source)`` with the user-facing one-line errors."""
+    def _load(self, auto_class, **kwargs):
+        """``auto_class.from_pretrained(source, **kwargs)`` with the user-facing one-line errors."""
         import logging
 
         # Without a network huggingface_hub logs every retry (five, over ~25 s) before it gives up; the
         # user gets our one line instead. Its download progress bars are not log records and still show.
-        hub_log = logging.getLogger("huggingface_hub")
-        level = hub_log.level
-        hub_log.setLevel(max(level, logging.ERROR))
+        # transformers' own report of missing weights is replaced by ours (__init__).
+        logs = [logging.getLogger(name) for name in ("huggingface_hub", "transformers")]
+        levels = [log.level for log in logs]
+        for log, level in zip(logs, levels, strict=True):
+            log.setLevel(max(level, logging.ERROR))
         try:
-            return auto_class.from_pretrained(self.source)
+            return auto_class.from_pretrained(self.source, **kwargs)
         except (OSError, ValueError, KeyError) as e:
             raise ValueError(self._load_error(e)) from e
         finally:
-            hub_log.setLevel(level)
+            for log, level in zip(logs, levels, strict=True):
+                log.setLevel(level)
 
     def _load_error(self, e: Exception) -> str:
         first = (str(e).strip().splitlines() or [type(e).__name__])[0]

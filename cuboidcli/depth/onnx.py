@@ -2,19 +2,20 @@
 
 Expected tensors:
 
-- input: one tensor ``(1, 3, h, w)`` (NCHW) or ``(1, h, w, 3)`` (NHWC) float32, RGB order,
+- input: one tensor ``(1, 3, h, w)`` (NCHW) or ``(1, h, w, 3)`` (NHWC) float32 (or float16 or float64:
+  the image is fed in the model's precision), RGB order,
   ``(rgb / 255 - mean) / std`` per channel (``mean``/``std`` default to the ImageNet statistics; pass
   (0, 0, 0) and (1, 1, 1) for plain [0, 1]). ``h, w`` fixed in the model: the image is resized to them
   and the output resized back; dynamic: the image is fed at the preset's size (sides multiples of its
   ``multiple``), at ``input_size``, or at its own size. A named preset
   (:mod:`cuboidcli.depth.onnx_presets`) sets layout, normalisation, size and kind for common exports.
 - output: the first output, ``(1, 1, h', w')``, ``(1, h', w')``, ``(1, h', w', 1)`` or ``(h', w')``
-  float32, resized bilinearly to the image size if different. ``kind`` says what it holds: ``metric``
-  depth in metres; ``relative`` depth up to an unknown scale and shift (d = scale * r + shift, m);
-  ``relative-inverse`` inverse depth up to scale and shift (1 / d = scale * r + shift, 1/m; MiDaS /
-  Depth Anything style). Relative outputs are scaled by :class:`cuboidcli.depth.scale.DepthScaling`: a
-  given scale (and shift), a least-squares fit to a partial reference depth map over the reference's
-  valid pixels, or the camera's height above the floor.
+  float (any precision), resized bilinearly to the image size if different. ``kind`` says what it
+  holds: ``metric`` depth in metres; ``relative`` depth up to an unknown scale and shift
+  (d = scale * r + shift, m); ``relative-inverse`` inverse depth up to scale and shift
+  (1 / d = scale * r + shift, 1/m; MiDaS / Depth Anything style). Relative outputs are scaled by
+  :class:`cuboidcli.depth.scale.DepthScaling`: a given scale (and shift), a least-squares fit to a
+  partial reference depth map over the reference's valid pixels, or the camera's height above the floor.
 """
 
 from __future__ import annotations
@@ -29,6 +30,9 @@ from cuboidcli.camera import Camera
 from cuboidcli.depth.image import check_rgb, resize
 from cuboidcli.depth.scale import DepthScaling
 from cuboidcli.nets.depth import IMAGENET_MEAN, IMAGENET_STD
+
+#: The input and output types of a depth model that are read, with the numpy type its input is fed as.
+FLOAT_TENSORS = {"tensor(float)": np.float32, "tensor(float16)": np.float16, "tensor(double)": np.float64}
 
 
 def _normalised_nchw(rgb: np.ndarray, mean, std) -> np.ndarray:
@@ -133,8 +137,13 @@ class OnnxDepthEstimator:
             raise ValueError(
                 f"the depth model's input has shape {shape}; expected (1, 3, H, W) or (1, H, W, 3)"
             )
-        if inputs[0].type not in ("tensor(float)", "tensor(float16)", "tensor(double)"):
-            raise ValueError(f"the depth model's input is {inputs[0].type}; expected a float tensor")
+        if inputs[0].type not in FLOAT_TENSORS:
+            raise ValueError(
+                f"the depth model's input is {inputs[0].type}; expected a float tensor "
+                f"({', '.join(FLOAT_TENSORS)})"
+            )
+        # the image is fed in the model's own precision: onnxruntime converts nothing
+        self.input_dtype = FLOAT_TENSORS[inputs[0].type]
         n = shape[0]
         first, last = shape[1], shape[3]
         if self.layout is None:  # read it from the shape: channels of 3 first or last
@@ -160,8 +169,14 @@ class OnnxDepthEstimator:
         return inputs[0].name, fixed
 
     def _inspect_output(self) -> None:
-        """Refuse a first output whose declared shape cannot be a depth map (one line)."""
-        shape = list(self.session.get_outputs()[0].shape)
+        """Refuse a first output whose declared type or shape cannot be a depth map (one line)."""
+        output = self.session.get_outputs()[0]
+        if output.type not in FLOAT_TENSORS:
+            raise ValueError(
+                f"the depth model's output is {output.type}; expected a float tensor "
+                f"({', '.join(FLOAT_TENSORS)})"
+            )
+        shape = list(output.shape)
         fixed = [d for d in shape if isinstance(d, int)]
         ok = 2 <= len(shape) <= 4
         if ok and len(shape) >= 3:
@@ -198,6 +213,7 @@ class OnnxDepthEstimator:
         x = _normalised_nchw(resize(rgb, h, w), self.mean, self.std)
         if self.layout == "nhwc":
             x = np.ascontiguousarray(x.transpose(0, 2, 3, 1))
+        x = x.astype(self.input_dtype, copy=False)
         try:
             out = self.session.run(None, {self.input_name: x})[0]
         except Exception as e:  # a model that rejects the size raises an onnxruntime error

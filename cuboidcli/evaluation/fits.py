@@ -46,12 +46,15 @@ def dataset_input(frame) -> dict:
     return meta
 
 
-def estimated_depth(frame, depth_model: Path | None) -> tuple[np.ndarray, float]:
-    """Depth from the frame's RGB image: (depth m (H, W), seconds the estimation took).
-
-    The estimator is built once per process (loading it is start-up, not fitting time)."""
+def photo_input(frame, depth_model: Path | None):
+    """The frame to fit from its RGB image alone, as ``cuboids fit PHOTO -K ...`` reads a photo: an
+    :class:`~cuboidcli.load.Input` of source "photo" with the depth predicted from the image (the seconds
+    it took) and the image's lines in the frame's camera (the prior on the down direction and the room's
+    axes, which come first for predicted depth), recorded as ``input.lines``. The estimator is built once
+    per process (loading it is start-up, not fitting time)."""
     from cuboidcli.factories import DepthModelOptions
-    from cuboidcli.load.frame import depth_from_rgb
+    from cuboidcli.load import Input
+    from cuboidcli.load.frame import depth_from_rgb, photo_lines
 
     rgb = frame.rgb() if hasattr(frame, "rgb") else None
     if rgb is None:
@@ -61,7 +64,16 @@ def estimated_depth(frame, depth_model: Path | None) -> tuple[np.ndarray, float]
         estimate = depth_from_rgb(rgb, frame.camera, opts)
     except ValueError as e:
         raise InputError(f"frame {frame.name}: {e}") from e
-    return estimate.depth_m, estimate.seconds
+    lines, lines_s = (
+        photo_lines(rgb, frame.camera) if rgb.shape[:2] == estimate.depth_m.shape else (None, None)
+    )
+    meta = dataset_input(frame)
+    if lines is not None:
+        meta["lines"] = lines.to_dict()
+    return Input(
+        "photo", frame.camera, meta, [], estimate.depth_m, rgb, estimate.seconds,
+        lines=lines, lines_seconds=lines_s,
+    )  # fmt: skip
 
 
 def fit_and_save(
@@ -76,14 +88,14 @@ def fit_and_save(
     """Fit one frame with ``config`` (its seed is the run's) and, with ``save_fits_dir``, save its
     "cuboids/1" result: (cuboids, timing_s, the gravity the fit used or estimated, ``FitInfo.gravity``).
 
-    With ``rgb`` the fit is of the depth predicted from the frame's image (``depth_m`` is unused) and
-    ``timing_s["total"]`` includes the depth estimation (``timing_s["depth"]``).
+    With ``rgb`` the fit is of the depth predicted from the frame's image (``depth_m`` is unused), with
+    the image's lines as the prior on the down direction (:func:`photo_input`), and ``timing_s["total"]``
+    includes the depth estimation and the lines (``timing_s["depth"]``, ``timing_s["lines"]``).
     """
     from cuboidcli.job import fitter_for
+    from cuboidcli.load import Input, load
 
-    depth_s = None
-    if rgb:
-        depth_m, depth_s = estimated_depth(frame, depth_model)
+    photo = photo_input(frame, depth_model) if rgb else None
     weights = None if weights_dir is None else str(weights_dir)
     try:
         # The estimator of this configuration is built once per process (any seed: it is the fit's).
@@ -91,19 +103,22 @@ def fit_and_save(
         with warnings.catch_warnings():
             # Every frame of the data set is scored as it is; notes on its input are no part of the report.
             warnings.simplefilter("ignore", InputWarning)
-            fit = fitter.fit(depth_m, frame.camera, seed=config.seed)
+            if photo is None:
+                fit = fitter.fit(depth_m, frame.camera, seed=config.seed)
+            else:  # the depth array read as Fitter.fit reads it, fitted as the photo it came from
+                read = load(photo.depth_m, camera=frame.camera)
+                fit = fitter.fit_input(
+                    replace(photo, depth_m=read.depth_m, camera=read.camera), seed=config.seed
+                )
     except (ValueError, FileNotFoundError, ImportError) as e:  # bad settings, weights or input: one line
         raise InputError(f"frame {frame.name}: {e}") from e
     info = fit.info
-    if depth_s is not None:
-        info.add_depth_time(depth_s)
     if save_fits_dir is not None:
         # Recorded as the evaluation asked for it: the configured names and weights, the data set's frame.
-        from cuboidcli.load import Input
         from cuboidcli.result import result_record
 
         result = result_record(
-            Input("depth", frame.camera, dataset_input(frame)),
+            Input("depth", frame.camera, dataset_input(frame) if photo is None else photo.meta),
             fit.cuboids,
             info,
             config.for_kind("frame"),

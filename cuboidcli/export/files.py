@@ -58,30 +58,15 @@ def ply_paths(points_path: str | Path) -> dict[str, Path]:
     return named_after("ply", points_path)
 
 
-def _asked(glb: bool, ply: bool, obj: bool, overlay: bool, scenes: Iterable[str], kinds) -> list[str]:
-    flags = {"glb": glb, "ply": ply, "obj": obj, "overlay": overlay}
-    return in_table_order([*(k for k, on in flags.items() if on), *scenes, *(kinds or ())])
-
-
-def output_paths(
-    stem: str | Path,
-    *,
-    glb: bool = False,
-    ply: bool = False,
-    obj: bool = False,
-    overlay: bool = False,
-    scenes: tuple[str, ...] = (),
-    kinds: Iterable[str] | None = None,
-    views: list | None = None,
-) -> dict[str, Path]:
-    """The files beside the result ``<stem>.json`` for the outputs asked for (the flags, ``scenes`` and
-    ``kinds``, keys of :data:`~cuboidcli.export.outputs.OUTPUTS`), by file key, in the order they are
-    written: ``glb`` <stem>.glb; ``ply`` <stem>_points.ply and <stem>_cuboids.ply; ``obj`` <stem>.obj and
-    <stem>.mtl; ``overlay`` <stem>_overlay.png, _labels.png, _labels_color.png, _panel.png, or for a room
-    (its sequence frames ``views`` given) <stem>_overlay_<frame>.png on each frame it is drawn on; each
-    scene kind at :func:`scene_path`."""
+def output_paths(stem: str | Path, kinds: Iterable[str], *, views: list | None = None) -> dict[str, Path]:
+    """The files beside the result ``<stem>.json`` for the outputs ``kinds`` (keys of
+    :data:`~cuboidcli.export.outputs.OUTPUTS`), by file key, in the order they are written: ``glb``
+    <stem>.glb; ``ply`` <stem>_points.ply and <stem>_cuboids.ply; ``obj`` <stem>.obj and <stem>.mtl;
+    ``overlay`` <stem>_overlay.png, _labels.png, _labels_color.png, _panel.png, or for a room (its sequence
+    frames ``views`` given) <stem>_overlay_<frame>.png on each frame it is drawn on; each scene kind at
+    :func:`scene_path`."""
     paths: dict[str, Path] = {}
-    for kind in _asked(glb, ply, obj, overlay, scenes, kinds):
+    for kind in in_table_order(kinds):
         paths.update(kind_paths(kind, stem, views=views))
     return paths
 
@@ -91,19 +76,7 @@ def frame_overlay_path(stem: str | Path, frame: str) -> Path:
     return Path(f"{stem}{OUTPUTS['overlay'].view_file.format(frame=frame)}")
 
 
-def output_files(
-    out_json: str | Path,
-    *,
-    glb: bool = False,
-    ply: bool = False,
-    overlay: bool = False,
-    scenes: tuple[str, ...] = (),
-    kinds: Iterable[str] | None = None,
-    views: list | None = None,
-) -> list[Path]:
-    """Every file of a complete result ``out_json`` with these outputs (as :func:`output_paths`), the JSON
-    last (it is written last, so where it exists the others do)."""
-    extra = output_paths(
-        result_stem(out_json), glb=glb, ply=ply, overlay=overlay, scenes=scenes, kinds=kinds, views=views
-    )
-    return [*extra.values(), Path(out_json)]
+def output_files(out_json: str | Path, kinds: Iterable[str], *, views: list | None = None) -> list[Path]:
+    """Every file of a complete result ``out_json`` with the outputs ``kinds`` (as :func:`output_paths`),
+    the JSON last (it is written last, so where it exists the others do)."""
+    return [*output_paths(result_stem(out_json), kinds, views=views).values(), Path(out_json)]

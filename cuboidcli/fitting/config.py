@@ -9,10 +9,10 @@ later paragraphs give the details.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import asdict, dataclass, fields, replace
 
-from cuboidcli.fitting.parts import SAMPLERS, SOLVERS, or_list
+from cuboidcli.fitting.checks import Check, choice, number, switch, text, vector, whole
+from cuboidcli.fitting.parts import SAMPLERS, SOLVERS
 from cuboidcli.geometry.backends import BACKENDS
 
 #: Orientation constraints of selected cuboids (FitConfig.align).
@@ -150,7 +150,7 @@ class FitConfig:
     """Learning rate of the refinement's Adam (m, and radians of the axis-angle, per step)."""
     refine_keep: float = 0.005
     """The refined cuboid replaces the selected one unless its inlier-count gain drops by more than this
-    share of the selected one's (0.005 = 0.5 %)."""
+    share of the selected one's (0.005 = 0.5 %); a negative share keeps the selected one always."""
     prescore_points: int = 0
     """Fast path: if > 0, score all hypotheses on this many random points first and rescore only the
     best ``rescore_top`` on all points. 0 = exact scoring of every hypothesis on every point."""
@@ -251,66 +251,81 @@ class FitConfig:
                 error = setting_error(f.name, getattr(self, f.name))
                 if error is not None:
                     raise ValueError(error)
+        if self.a_min > self.a_max:
+            raise ValueError(f"a_min ({self.a_min}) must not exceed a_max ({self.a_max})")
         if self.backend == "numba" and not self.device.startswith("cpu"):
             raise ValueError(
                 f"backend 'numba' runs on the CPU only, not on {self.device!r}; use auto or torch"
             )
 
 
-@dataclass(frozen=True)
-class Check:
-    """What one setting allows, and the one-line message when a value is not allowed. The message's
-    ``{name}`` is the field, or the flag that set it; ``{value}`` the value; ``{choices}`` the names
-    allowed as "a, b or c", ``{listed}`` as "a, b, c"."""
-
-    message: str
-    choices: tuple[str, ...] = ()
-    """The names allowed; empty: ``ok`` decides."""
-    ok: Callable[[object], bool] | None = None
-
-    def error(self, name: str, value, choices: tuple[str, ...] | None = None) -> str | None:
-        """The message for ``value``, or None when it is allowed (None, a field's "not set", always is).
-        ``choices`` narrows the names allowed (a command that offers fewer parts)."""
-        allowed = self.choices if choices is None else choices
-        if value is None or (value in allowed if allowed else self.ok(value)):
-            return None
-        listed = ", ".join(allowed)
-        return self.message.format(name=name, value=value, choices=or_list(allowed), listed=listed)
+def _unit_vector(v) -> bool:
+    return len(v) == 3 and all(map(math.isfinite, v)) and abs(math.hypot(*v) - 1.0) < 1e-6
 
 
-def _at_least_1(value) -> bool:
-    return value >= 1
+def _direction(v) -> bool:
+    return len(v) == 3 and all(map(math.isfinite, v)) and math.hypot(*v) > 0
 
 
-_AT_LEAST_1 = Check("{name} must be at least 1 (got {value})", ok=_at_least_1)
+#: Largest count of hypotheses, cuboids, points or iterations: far beyond any useful setting, small enough
+#: that a typo (an extra few zeros) is refused rather than run out of memory.
+_MANY = 1_000_000
+_METRES = number(0, 1000, open_low=True, unit="m")
+_SQ_METRES = number(0, 1000, open_low=True, unit="m^2")
+_FRACTION = number(0, 1)
+_LR = number(0, 100, open_low=True)
+_CHOOSE_LISTED = "{name} {value}: choose {listed}"
 
-#: The check of every setting that has one, the only one of that setting (:meth:`FitConfig.check` adds the
-#: one across settings). Messages are one line; the command line prints them with the flag as the name.
+#: The check of every setting, the only one of that setting (:meth:`FitConfig.check` adds the checks
+#: across settings). Messages are one line; the command line prints them with the flag as the name.
 CHECKS: dict[str, Check] = {
-    "hypotheses": _AT_LEAST_1,
-    "max_cuboids": _AT_LEAST_1,
-    "min_set": _AT_LEAST_1,
-    "grid_step": _AT_LEAST_1,
-    "fit_points": _AT_LEAST_1,
-    "sampler": Check("{name} {value!r}: choose {choices}", SAMPLERS),
-    "local_fraction": Check("{name} must be between 0 and 1 (got {value})", ok=lambda v: 0.0 <= v <= 1.0),
-    "local_radii_m": Check("{name} must be positive radii (got {value})", ok=lambda v: v and min(v) > 0),
-    "max_batches": _AT_LEAST_1,
-    "confidence": Check("{name} must be in (0, 1) (got {value})", ok=lambda v: 0.0 < v < 1.0),
-    "solver": Check("{name} {value!r}: choose {choices}", SOLVERS),
-    "slab_max_m": Check("{name} must be positive metres (got {value})", ok=lambda v: v > 0),
-    "align": Check("{name} {value!r}: choose {listed}", ALIGN_MODES),
-    "upright_set_size": _AT_LEAST_1,
-    "backend": Check("{name} must be one of {listed}, got {value!r}", BACKENDS),
-    "refine_iters": _AT_LEAST_1,
-    "refine_lr": Check("{name} must be positive (got {value})", ok=lambda v: v > 0),
-    "voxel_m": Check("{name} must be positive metres (got {value})", ok=lambda v: v > 0),
-    "visibility": Check("{name} {value!r}: choose {listed}", VISIBILITY_CHOICES),
-    "up": Check(
-        "{name} must be a unit vector of 3 finite numbers (got {value})",
-        ok=lambda v: len(v) == 3 and all(map(math.isfinite, v)) and abs(math.hypot(*v) - 1.0) < 1e-6,
+    "hypotheses": whole(1, 100_000),
+    "max_cuboids": whole(1, 1000),
+    "min_set": whole(1, 1000),
+    "tau_sq_m2": _SQ_METRES,
+    "beta": number(0, 1e6, open_low=True),
+    "tau_c_sq_m2": _SQ_METRES,
+    "theta": number(),
+    "theta_log_factor": number(0, 1e6),
+    "grid_step": whole(1, 10_000),
+    "fit_points": whole(1, 10 * _MANY),
+    "occlusion_aware": switch(),
+    "sampler": choice(SAMPLERS),
+    "local_fraction": _FRACTION,
+    "local_radii_m": vector(
+        "radii, each a number > 0 and <= 1000 m",
+        lambda v: len(v) > 0 and all(_METRES.allows(r) and r is not None for r in v),
     ),
-    "virtual_view_m": Check("{name} must be positive metres (got {value})", ok=lambda v: v > 0),
+    "max_batches": whole(1, 1000),
+    "confidence": number(0, 1, open_low=True, open_high=True),
+    "local_success": number(0, 1, open_low=True),
+    "solver": choice(SOLVERS),
+    "a_min": _METRES,
+    "a_max": _METRES,
+    "slab_max_m": _METRES,
+    "align": choice(ALIGN_MODES, _CHOOSE_LISTED),
+    "upright_fraction": _FRACTION,
+    "upright_set_size": whole(1, 1000),
+    "gravity_down": vector("3 finite numbers, not all 0", _direction),
+    "solver_lr": _LR,
+    "solver_iters": whole(0, _MANY),
+    "refine_iters": whole(1, _MANY),
+    "refine_lr": _LR,
+    "refine_keep": number(-1, 1),
+    "prescore_points": whole(0, 10 * _MANY),
+    "rescore_top": whole(1, _MANY),
+    "refine": switch(),
+    "grow_rounds": whole(0, 1000),
+    "grow_thickness": switch(),
+    "grow_step_m": _METRES,
+    "refine_max_points": whole(1, 10 * _MANY),
+    "seed": whole(0, 2**63 - 1),
+    "device": text("cpu, cuda or cuda:N", lambda v: v.split(":")[0] in ("cpu", "cuda")),
+    "voxel_m": _METRES,
+    "visibility": choice(VISIBILITY_CHOICES, _CHOOSE_LISTED),
+    "up": vector("a unit vector of 3 finite numbers", _unit_vector),
+    "virtual_view_m": _METRES,
+    "backend": choice(BACKENDS, "{name} must be one of {listed}, got {value}"),
 }
 
 

@@ -1,10 +1,12 @@
 """A frame as the estimator's input (:func:`frame_input`): the fitting grid of a depth map
-(:func:`prepare_points`), the orientation constraint from gravity (:func:`resolve_alignment`), and the
-per-cell labels of the selected cuboids (:func:`grid_assignment`)."""
+(:func:`prepare_points`), the orientation constraint from gravity (:func:`resolve_alignment`: the depth
+map's surfaces and, where the frame has a photo, its lines), and the per-cell labels of the selected
+cuboids (:func:`grid_assignment`)."""
 
 from __future__ import annotations
 
 import time
+from typing import TYPE_CHECKING
 
 import numpy as np
 import torch
@@ -14,7 +16,11 @@ from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.fit_input import FitInput, ImageGrid
 from cuboidcli.geometry.cells import ImageCells
+from cuboidcli.geometry.down import combine_down
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
+
+if TYPE_CHECKING:
+    from cuboidcli.geometry.vanishing import LineEstimate
 
 #: Label of a fitting-grid cell without depth (:func:`grid_assignment`).
 INVALID = -3
@@ -48,15 +54,25 @@ def prepare_points(depth_m: np.ndarray, camera: Camera, grid_step: int, device: 
     return FitInput("frame", points, "camera", grid=image_grid)
 
 
-def frame_input(depth_m: np.ndarray, camera: Camera, config: FitConfig) -> FitInput:
+def frame_input(
+    depth_m: np.ndarray,
+    camera: Camera,
+    config: FitConfig,
+    lines: LineEstimate | None = None,
+    depth_predicted: bool = False,
+) -> FitInput:
     """A depth map (H, W) metres seen by ``camera`` as the estimator's input: the fitting grid of
-    ``config.step_for`` its size, gravity and the orientation constraint (:func:`resolve_alignment`)."""
+    ``config.step_for`` its size, gravity and the orientation constraint (:func:`resolve_alignment`).
+
+    ``lines``: what the frame's photo's lines say (in ``camera``'s frame), a prior on the down direction
+    and the room's axes; ``depth_predicted``: the depth map was predicted from that photo (the lines come
+    first), else measured (the lines only cross-check it)."""
     t0 = time.perf_counter()
     inp = prepare_points(depth_m, camera, config.step_for(*depth_m.shape), config.device)
     inp.started = t0
     inp.timing_s["prepare"] = time.perf_counter() - t0
     t = time.perf_counter()
-    gravity, alignment, warning = resolve_alignment(inp, config)
+    gravity, alignment, warning = resolve_alignment(inp, config, lines, depth_predicted)
     if config.align != "free" or config.gravity_down is not None:
         inp.timing_s["gravity"] = time.perf_counter() - t
     inp.gravity, inp.alignment = gravity, alignment
@@ -67,13 +83,18 @@ def frame_input(depth_m: np.ndarray, camera: Camera, config: FitConfig) -> FitIn
     return inp
 
 
-def resolve_alignment(prep: FitInput, config: FitConfig) -> tuple[Gravity | None, Alignment | None, str]:
+def resolve_alignment(
+    prep: FitInput, config: FitConfig, lines: LineEstimate | None = None, depth_predicted: bool = False
+) -> tuple[Gravity | None, Alignment | None, str]:
     """Gravity and the orientation constraint of a fit: (gravity or None, alignment or None, warning).
 
-    A given ``config.gravity_down`` is used as it is; otherwise gravity is estimated from the depth map
-    when ``config.align`` needs it (geometry/gravity.py). "manhattan" also needs the room's horizontal
-    axes, estimated from the surface normals and made exactly perpendicular to the gravity used. Without
-    a reliable gravity the fit stays free, with a warning.
+    A given ``config.gravity_down`` is used as it is; otherwise, when ``config.align`` needs it, the down
+    direction comes from the depth map (geometry/gravity.py) and the photo's ``lines``, by the rule of
+    :func:`cuboidcli.geometry.down.combine_down` (a photo, ``depth_predicted``: the lines first; a depth
+    map: its own estimate, kept unless unsure). "manhattan" also needs the room's horizontal axes: those
+    of the estimate used (with a given down, of the one that would be used), made exactly perpendicular
+    to the down direction. Without any estimate the fit stays free, with a warning; with an unsure one,
+    a warning says so (where there was a photo to ask).
     """
     if config.align == "free" and config.gravity_down is None:
         return None, None, ""
@@ -82,29 +103,32 @@ def resolve_alignment(prep: FitInput, config: FitConfig) -> tuple[Gravity | None
     grid[prep.grid.index.numpy()] = prep.points.double().cpu().numpy()
     grid = grid.reshape(hs, ws, 3)
     estimated = estimate_gravity(grid, seed=config.seed)
+    choice = combine_down(estimated, lines, lines_first=depth_predicted)
+    warning = choice.note if (depth_predicted or lines is not None) else ""
     if config.gravity_down is not None:
-        gravity = given_gravity(config.gravity_down)
-        if estimated is not None:  # keep the room's axes for "manhattan", made vertical for the given down
-            gravity = Gravity(
-                gravity.down, "given", 1.0, manhattan_axes(gravity.down, estimated.frame), estimated.support
-            )
+        gravity, warning = given_gravity(config.gravity_down), ""
+        found = choice.gravity
+        if found is not None and found.frame is not None:  # its room axes, made vertical for the given down
+            axes = manhattan_axes(gravity.down, found.frame)
+            gravity = Gravity(gravity.down, "given", 1.0, axes, found.support)
     else:
-        gravity = estimated
+        gravity = choice.gravity
     if config.align == "free":
         return gravity, None, ""
     if gravity is None:
+        where = "this depth map" if not depth_predicted and lines is None else "this photo"
         return (
             None,
             None,
             (
-                f"no reliable gravity in this depth map (too few floor, wall or table surfaces); "
+                f"no reliable gravity in {where} (too few floor, wall or table surfaces"
+                f"{'' if where == 'this depth map' else ', no vanishing points in its lines'}); "
                 f"cuboids are fitted free instead of {config.align}-aligned (give --gravity gx,gy,gz)"
             ),
         )
     axes = gravity.frame if config.align == "manhattan" else None
-    warning = ""
     if config.align == "manhattan" and axes is None:
-        warning = "no room axes in this depth map; cuboids are gravity-aligned with a free yaw"
+        warning = warning or "no room axes in this depth map; cuboids are gravity-aligned with a free yaw"
     return gravity, Alignment(config.align, gravity.up, axes), warning
 
 

@@ -28,14 +28,19 @@ class Gravity:
     down: np.ndarray
     """(3,) unit vector in camera coordinates, pointing to the floor."""
     source: str
-    """"estimated" (from the depth map) or "given" (by the user)."""
+    """"estimated" (from the depth map) or "given" (by the user); a fitted frame's says which witness
+    gave it (:func:`cuboidcli.geometry.down.combine_down`): "depth", "photo lines", "lines and depth"."""
     confidence: float
     """In [0, 1]: share of the surface normals that agree with the Manhattan frame, 0 when the estimate is
     not reliable; 1 for a given direction."""
     frame: np.ndarray | None = None
     """(3, 3) Manhattan frame (columns: up, then two horizontal axes), or None when not estimated."""
     support: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    """Share of the normals along each column of ``frame`` (either sign)."""
+    """Share of the normals along each column of ``frame`` (either sign); from a photo's lines, the
+    share of the segments' length."""
+    lines_deg: float | None = None
+    """Degrees between the down directions of the depth map and of the photo's lines, where both were
+    estimated (their cross-check); None otherwise."""
 
     @property
     def up(self) -> np.ndarray:
@@ -58,6 +63,8 @@ class Gravity:
         if self.frame is not None:
             out["manhattan_frame"] = [[round(float(x), 6) for x in row] for row in self.frame]
             out["support"] = [round(float(s), 4) for s in self.support]
+        if self.lines_deg is not None:
+            out["lines_deg"] = round(float(self.lines_deg), 3)
         return out
 
 

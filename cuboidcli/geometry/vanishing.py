@@ -21,7 +21,7 @@ Vectors are in the OpenCV camera frame (x right, y down, z forward); pixels have
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -79,6 +79,27 @@ class LineEstimate:
     endpoints from the lines to their vanishing points: their angular consistency."""
     fit: ManhattanFit
     """The vanishing-point fit behind it (segment labels, vanishing points, covariance)."""
+
+    def seen_by(self, fx: float, fy: float, cx: float, cy: float) -> LineEstimate:
+        """The estimate in the frame of another camera of the same image (pixels): the vanishing points
+        stay where they are in the image, and their directions are those the new intrinsics give them (the
+        down direction K'^-1 K d; the horizontal axes made perpendicular to it). Used where the fit's camera
+        is not the one the lines were fitted with (a default field of view, a depth model's focal length):
+        the down direction must be the vertical edges' direction as that camera back-projects them. The
+        confidences and ``focal_px`` (the lines' own estimate) are kept; the same camera: itself."""
+        f = self.fit
+        (pcx, pcy), pf = f.principal_px, f.focal_px
+        old = np.array([[pf, 0.0, pcx], [0.0, f.aspect * pf, pcy], [0.0, 0.0, 1.0]])
+        new = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]], dtype=np.float64)
+        if np.allclose(old, new, rtol=1e-9, atol=1e-9):
+            return self
+        m = np.linalg.solve(new, old)  # K'^-1 K: keeps the sign of each direction (positive diagonals)
+        down = m @ self.down
+        down /= np.linalg.norm(down)
+        h = m @ self.axes[:, 1]
+        h -= (h @ down) * down
+        h /= np.linalg.norm(h)
+        return replace(self, down=down, axes=np.stack([-down, h, np.cross(-down, h)], axis=1))
 
     def to_dict(self) -> dict:
         """A JSON-ready record (no segment labels)."""

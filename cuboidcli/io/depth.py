@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from cuboidcli.camera import PRESETS, Camera, valid_depth
-from cuboidcli.io.jsonfile import read_json
+from cuboidcli.io.jsonfile import misspelled, read_json, unknown_keys, warn_once
 
 
 class InputError(ValueError):
@@ -70,8 +70,68 @@ def _read_exr(path: Path) -> np.ndarray:
     raise InputError(f"{path} holds no image channels")
 
 
+#: The names an ``.npz`` depth map's array may have; a file with one array may name it anything.
+NPZ_DEPTH_KEYS = ("depth", "depth_m")
+
+
+def _npz_depth(path: Path, z) -> np.ndarray:
+    """The depth array of an opened ``.npz``: the one named as :data:`NPZ_DEPTH_KEYS`, else the only one."""
+    named = [k for k in NPZ_DEPTH_KEYS if k in z.files]
+    takes = f"save the depth map as np.savez(f, depth=...) ({' or '.join(NPZ_DEPTH_KEYS)})"
+    if len(named) > 1:
+        raise InputError(f"{path} holds arrays {' and '.join(named)}; which is the depth map? {takes}")
+    if named:
+        return z[named[0]]
+    if not z.files:
+        raise InputError(f"{path} holds no arrays; {takes}")
+    if len(z.files) > 1:
+        listed = ", ".join(sorted(z.files)[:6]) + (", ..." if len(z.files) > 6 else "")
+        raise InputError(f"{path} holds several arrays ({listed}) and none is named depth; {takes}")
+    warnings.warn(f"{path}: read its one array {z.files[0]!r} as the depth map", InputWarning, stacklevel=3)
+    return z[z.files[0]]
+
+
+def _depth_array(path: Path, depth: np.ndarray, depth_scale: float) -> np.ndarray:
+    """A decoded depth file's array as a depth map in metres (H, W) float32; InputError for an array that
+    cannot be one (a shape other than (H, W) or (H, W, 1), no values, not real numbers)."""
+    numpy_file = path.suffix.lower() in (".npy", ".npz")
+    if depth.ndim == 3 and depth.shape[2] == 1:
+        depth = depth[..., 0]
+    elif depth.ndim == 3 and depth.shape[2] in (3, 4):
+        raise InputError(
+            f"{path} has {depth.shape[2]} channels; a depth map has one (is this the RGB image?)"
+        )
+    if depth.ndim != 2:
+        raise InputError(f"{path} has shape {depth.shape}; expected a 2-D depth map (H, W)")
+    if depth.size == 0:
+        raise InputError(f"{path} holds an empty array (shape {depth.shape}); expected a depth map (H, W)")
+    kind = depth.dtype.kind
+    if kind == "b":
+        raise InputError(f"{path} holds booleans (a mask?); a depth map holds metres (float32)")
+    if kind not in "iuf":
+        what = "complex numbers" if kind == "c" else f"{depth.dtype} values"
+        raise InputError(f"{path} holds {what}; a depth map holds real metres (float32)")
+    if kind == "f":
+        return depth.astype(np.float32)
+    if depth.dtype == np.uint8:
+        raise InputError(
+            f"{path} is an 8-bit {'array' if numpy_file else 'image'}; depth must be a 16-bit PNG "
+            "(or .npy/.npz in metres)"
+        )
+    if numpy_file:
+        warnings.warn(
+            f"{path} holds integers ({depth.dtype}), read as depth-PNG units of {depth_scale:g} m "
+            "(--depth-scale); .npy/.npz depth in metres is float",
+            InputWarning,
+            stacklevel=3,
+        )
+    return depth.astype(np.float32) * np.float32(depth_scale)
+
+
 def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarray:
-    """Depth map in metres, float32 (H, W); missing values become 0."""
+    """Depth map in metres, float32 (H, W); missing values become 0. An ``.npz`` holds it as ``depth``
+    (:data:`NPZ_DEPTH_KEYS`) or as its only array; integers (a PNG's, an array's) are units of
+    ``depth_scale`` metres."""
     path = Path(path)
     if not path.exists():
         raise InputError(f"depth file not found: {path}")
@@ -83,10 +143,7 @@ def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarra
             depth = np.load(path, allow_pickle=False)
         elif suffix == ".npz":
             with np.load(path, allow_pickle=False) as z:
-                key = "depth" if "depth" in z.files else (z.files[0] if z.files else None)
-                if key is None:
-                    raise InputError(f"{path} holds no arrays; save the depth map as np.savez(f, depth=...)")
-                depth = z[key]
+                depth = _npz_depth(path, z)
         elif suffix == ".exr":
             depth = _read_exr(path)
         else:
@@ -95,21 +152,7 @@ def read_depth(path: str | os.PathLike, depth_scale: float = 0.001) -> np.ndarra
         raise
     except (ValueError, OSError, EOFError, zipfile.BadZipFile) as e:  # truncated or not this format
         raise InputError(f"cannot read depth file {path}: {_one_line(e)}") from e
-    if depth.ndim == 3:
-        if depth.shape[2] == 1:
-            depth = depth[..., 0]
-        else:
-            raise InputError(
-                f"{path} has {depth.shape[2]} channels; a depth map has one (is this the RGB image?)"
-            )
-    if depth.ndim != 2:
-        raise InputError(f"{path} has shape {depth.shape}; expected a 2-D depth map")
-    if np.issubdtype(depth.dtype, np.integer):
-        if depth.dtype == np.uint8:
-            raise InputError(f"{path} is an 8-bit image; depth must be a 16-bit PNG (or .npy/.npz in metres)")
-        depth = depth.astype(np.float32) * np.float32(depth_scale)
-    else:
-        depth = depth.astype(np.float32)
+    depth = _depth_array(path, np.asarray(depth), depth_scale)
     depth[~valid_depth(depth)] = 0.0
     return depth
 
@@ -162,6 +205,9 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
                 for tag in ("_depth_filled", "_depth_raw", "_depth", "_rgb", "_color", "_colour", "_image"):
                     if frame not in entries and frame.endswith(tag):
                         frame = frame[: -len(tag)]
+            if entries:
+                others = [k for k in d if k not in entries and not str(k).startswith("_")]
+                _warn_once(path, *(f"key {k!r} is no camera (it has no fx); ignored" for k in others))
             if frame is not None and frame in entries:
                 d = entries[frame]
             elif len(entries) == 1:
@@ -171,18 +217,22 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
                     f"{path} holds intrinsics for several frames ({', '.join(sorted(entries)[:4])}, "
                     f"...); none is named {frame!r}"
                 )
+        if not isinstance(d, dict):
+            raise InputError(f"intrinsics file {path} must hold an object with fx, fy, cx, cy (got a JSON "
+                             f"{type(d).__name__})")  # fmt: skip
+        _warn_once(path, *unknown_keys(d, CAMERA_KEYS))
         try:
             intr = Camera(
-                float(d["fx"]),
-                float(d["fy"]),
-                float(d["cx"]),
-                float(d["cy"]),
-                int(d["width"]) if "width" in d else 0,
-                int(d["height"]) if "height" in d else 0,
-                float(d["depth_scale"]) if "depth_scale" in d else None,
+                float(d["fx"]), float(d["fy"]), float(d["cx"]), float(d["cy"]),
+                _pixels(d, "width"), _pixels(d, "height"), _depth_scale(d),
                 source=str(path),
-            )
-        except (KeyError, TypeError, ValueError, OverflowError) as e:
+            )  # fmt: skip
+        except KeyError as e:
+            raise InputError(
+                f"intrinsics file {path} must hold numbers fx, fy, cx, cy (missing: {e}"
+                f"{misspelled(e.args[0], d)})"
+            ) from e
+        except (TypeError, ValueError, OverflowError) as e:
             raise InputError(
                 f"intrinsics file {path} must hold numbers fx, fy, cx, cy (missing or bad: {e})"
             ) from e
@@ -197,6 +247,32 @@ def parse_intrinsics(spec: str | None, preset: str | None = None, frame: str | N
     except ValueError as e:
         raise InputError(f"--intrinsics {spec!r}: fx,fy,cx,cy must be numbers") from e
     return _finite(Camera(fx, fy, cx, cy, source="command line"), f"--intrinsics {spec!r}")
+
+
+#: The keys of a camera in an intrinsics file (keys starting with "_" are comments).
+CAMERA_KEYS = ("fx", "fy", "cx", "cy", "width", "height", "depth_scale")
+
+
+def _warn_once(path: Path, *lines: str) -> None:
+    warn_once(path, lines, InputWarning)
+
+
+def _pixels(d: dict, key: str) -> int:
+    """An intrinsics file's image width or height: a whole number of pixels (0 or absent: unknown)."""
+    value = d.get(key, 0)
+    if isinstance(value, bool) or not isinstance(value, int | float) or value < 0 or value != int(value):
+        raise ValueError(f"{key} must be a whole number of pixels, got {value!r}")
+    return int(value)
+
+
+def _depth_scale(d: dict) -> float | None:
+    """An intrinsics file's metres per depth-PNG unit, as ``--depth-scale`` allows it."""
+    if "depth_scale" not in d:
+        return None
+    value = float(d["depth_scale"])
+    if not 0 < value <= 1:
+        raise ValueError(f"depth_scale must be a number > 0 and <= 1 m per unit, got {d['depth_scale']!r}")
+    return value
 
 
 def read_camera(

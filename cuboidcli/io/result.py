@@ -13,7 +13,8 @@ from cuboidcli import __version__
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.io.atomic import atomic_write_json
-from cuboidcli.io.jsonfile import read_json
+from cuboidcli.io.depth import InputWarning
+from cuboidcli.io.jsonfile import misspelled, read_json, unknown_keys, warn_once
 
 SCHEMA = "cuboids/1"
 #: Frames of the cuboids: a frame's OpenCV camera coordinates, or a scan's or a sequence's own world frame.
@@ -161,7 +162,7 @@ def _check_cuboid(c, where: str) -> None:
         raise ValueError(f"field '{where}' must be an object with center, half_size and rotation")
     for key in ("center", "half_size"):
         if key not in c:
-            raise ValueError(f"field '{where}.{key}' is missing")
+            raise ValueError(f"field '{where}.{key}' is missing{misspelled(key, c)}")
         if not _numbers(c[key], 3):
             raise ValueError(f"field '{where}.{key}' must be 3 finite numbers (got {c[key]!r:.60})")
     if any(a < 0 for a in c["half_size"]):
@@ -178,7 +179,8 @@ def _check_cuboid(c, where: str) -> None:
         if not _numbers(q, 4) or math.hypot(*q) < 1e-6:
             raise ValueError(f"field '{where}.quat_wxyz' must be 4 finite numbers, not all zero")
     else:
-        raise ValueError(f"field '{where}' has neither 'rotation' nor 'quat_wxyz'")
+        hint = misspelled("rotation", c) or misspelled("quat_wxyz", c)
+        raise ValueError(f"field '{where}' has neither 'rotation' nor 'quat_wxyz'{hint}")
     gain = c.get("inlier_gain")
     if gain is not None and not _is_number(gain):
         raise ValueError(f"field '{where}.inlier_gain' must be a number or null (got {gain!r:.40})")
@@ -195,7 +197,9 @@ def check_result_json(d) -> None:
     if frame not in FRAMES:
         raise ValueError(f"unsupported frame {frame!r} (field 'frame'); expected one of {', '.join(FRAMES)}")
     if "camera" not in d:
-        raise ValueError("field 'camera' is missing (fx, fy, cx, cy, width, height)")
+        raise ValueError(
+            f"field 'camera' is missing (fx, fy, cx, cy, width, height){misspelled('camera', d)}"
+        )
     cam = d["camera"]
     if cam is None and frame == "world":
         cam = {}  # a bare scan's result: no camera saw it
@@ -205,7 +209,7 @@ def check_result_json(d) -> None:
         raise ValueError("field 'camera' must be an object with fx, fy, cx, cy, width, height")
     for key in ("fx", "fy", "cx", "cy", "width", "height") if cam else ():
         if key not in cam:
-            raise ValueError(f"field 'camera.{key}' is missing")
+            raise ValueError(f"field 'camera.{key}' is missing{misspelled(key, cam)}")
         if not _is_number(cam[key]):
             raise ValueError(f"field 'camera.{key}' must be a finite number (got {cam[key]!r:.40})")
     for key in ("fx", "fy", "width", "height") if cam else ():
@@ -215,7 +219,9 @@ def check_result_json(d) -> None:
         if cam[key] != int(cam[key]):
             raise ValueError(f"field 'camera.{key}' must be a whole number of pixels (got {cam[key]})")
     if "cuboids" not in d:
-        raise ValueError("field 'cuboids' is missing (a list, empty when nothing was fitted)")
+        raise ValueError(
+            f"field 'cuboids' is missing (a list, empty when nothing was fitted){misspelled('cuboids', d)}"
+        )
     if not isinstance(d["cuboids"], list):
         raise ValueError("field 'cuboids' must be a list")
     for i, c in enumerate(d["cuboids"]):
@@ -223,6 +229,36 @@ def check_result_json(d) -> None:
     for key in ("settings", "timing_s", "input"):
         if key in d and not isinstance(d[key], dict):
             raise ValueError(f"field '{key}' must be an object (got {type(d[key]).__name__})")
+
+
+#: The top-level keys of a "cuboids/1" result: the schema's, and those the tool's fits and synthetic
+#: ground truth add (a frame's gravity, a room's up, objects and frames).
+RESULT_KEYS = (
+    *("schema", "version", "camera", "frame", "cuboids", "settings", "timing_s", "input"),
+    *("fit_info", "gravity", "world_from_camera", "up", "world_from_input", "objects", "frames", "room"),
+)
+#: The keys of a cuboid of a result: the schema's, a room's frames and objects', synthetic ground truth's.
+CUBOID_KEYS = (
+    *("id", "kind", "center", "half_size", "rotation", "quat_wxyz", "inlier_gain", "color"),
+    *("frames", "cuboids", "object", "category", "part", "visible_px", "views"),
+)
+
+
+def unknown_result_keys(d: dict) -> list[str]:
+    """A line for each key of a checked "cuboids/1" document that the schema does not know (kept as it is,
+    but a misspelled ``inlier_gian`` or ``fram`` would otherwise be dropped without a word); a cuboid's
+    once for all the cuboids that have it."""
+    lines = unknown_keys(d, RESULT_KEYS)
+    per_cuboid: dict[str, list[int]] = {}
+    for i, c in enumerate(d["cuboids"]):
+        for line in unknown_keys(c, CUBOID_KEYS):
+            per_cuboid.setdefault(line, []).append(i)
+    for line, which in per_cuboid.items():
+        where = (
+            f"cuboids[{which[0]}]" if len(which) == 1 else f"{len(which)} cuboids (cuboids[{which[0]}], ...)"
+        )
+        lines.append(f"{where}: {line}")
+    return [line.replace("; ignored", "; kept as it is") for line in lines]
 
 
 def write_result(path: str | os.PathLike, result: FitResult) -> Path:
@@ -237,4 +273,6 @@ def read_result(path: str | os.PathLike) -> FitResult:
         missing="result file not found: {path}",
         missing_error=FileNotFoundError,
     )
-    return FitResult.from_json(d)
+    result = FitResult.from_json(d)
+    warn_once(Path(path), unknown_result_keys(d), InputWarning)
+    return result

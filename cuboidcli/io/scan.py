@@ -3,13 +3,13 @@
 Files: ``.ply`` (points, or a mesh when it has faces), ``.pcd`` (Open3D), ``.obj`` / ``.glb`` / ``.gltf``
 (trimesh; a scene's meshes are joined with their node transforms), ``.npy`` (an (N, 3) or (N, 6) array:
 xyz, or xyz + rgb in 0-255 or 0-1) and ``.npz`` (``points`` or ``xyz``, optional ``colors`` or ``rgb``,
-optional ``normals``). Meshes are sampled uniformly by area. Every problem raises :class:`InputError`
-with a one-line message.
+optional ``normals``). Meshes are sampled uniformly by area. The coordinates are the file's, as stored:
+the room loader (:mod:`cuboidcli.load.units`) scales them by the unit they are in and checks that they can
+be a room. Every problem raises :class:`InputError` with a one-line message.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import zipfile
 from dataclasses import dataclass, field
@@ -20,15 +20,12 @@ import numpy as np
 from cuboidcli.io.depth import InputError, _one_line
 
 SCAN_SUFFIXES = (".ply", ".pcd", ".obj", ".glb", ".gltf", ".npy", ".npz")
-#: Metres per coordinate unit of the input.
+#: Metres per coordinate unit a file may be stored in (``--unit``); the room loader scales by it
+#: (:mod:`cuboidcli.load.units`), the settings' checks name the choices.
 UNITS = {"m": 1.0, "cm": 0.01, "mm": 0.001}
 MESH_SUFFIXES = (".obj", ".glb", ".gltf")
-#: Fewest points a room can be fitted from.
+#: Fewest points a room can be fitted from (and so the fewest a mesh is sampled to).
 MIN_POINTS = 100
-#: Plausible bounding-box diagonals of a scene, metres (a room up to a large building floor).
-MIN_DIAGONAL_M = 0.05
-MAX_DIAGONAL_M = 200.0
-_UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
 #: Grey for parts of a mesh without colour when other parts have one.
 _GREY = 128
 
@@ -37,8 +34,9 @@ _GREY = 128
 class PointCloud:
     """A scene as points in the input's own world frame.
 
-    ``points`` (N, 3) float64 metres; ``colors`` (N, 3) uint8 or None; ``normals`` (N, 3) float64 unit
-    vectors or None; ``viewpoints`` (N, 3) float64 metres: the centre of a camera that observed each point
+    ``points`` (N, 3) float64: a file's coordinates as stored when :func:`read_scan` returns them, metres
+    once loaded as a room; ``colors`` (N, 3) uint8 or None; ``normals`` (N, 3) float64 unit vectors or None;
+    ``viewpoints`` (N, 3) float64 metres: the centre of a camera that observed each point
     (fused sequences), else None; ``frames`` (N,) int32 index into ``frame_names`` of that observation's
     frame, else None. ``meta`` is JSON-able provenance, ``warnings`` one line each.
     """
@@ -59,13 +57,6 @@ class PointCloud:
 def is_scan_file(path: str | os.PathLike) -> bool:
     """Whether ``path`` has a point-cloud or mesh suffix (case-insensitive); the file need not exist."""
     return Path(path).suffix.lower() in SCAN_SUFFIXES
-
-
-def check_unit(unit: str) -> float:
-    """Metres per unit of ``unit``; InputError naming the choices when it is unknown."""
-    if unit not in UNITS:
-        raise InputError(f"unknown unit {unit!r}; choose one of: {', '.join(UNITS)}")
-    return UNITS[unit]
 
 
 def _colors_u8(colors: np.ndarray, what: str) -> np.ndarray:
@@ -187,7 +178,7 @@ def sample_mesh(
     vertices: np.ndarray, faces: np.ndarray, n: int, seed: int = 0, corner_colors: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
     """``n`` points uniformly by area on a triangle mesh: (points (n, 3), colours (n, 3) uint8 or None,
-    unit face normals (n, 3)). ``vertices`` (V, 3) metres, ``faces`` (F, 3) indices, ``corner_colors``
+    unit face normals (n, 3)). ``vertices`` (V, 3) in any unit, ``faces`` (F, 3) indices, ``corner_colors``
     (F, 3, 3) the colour at each face corner, interpolated. Deterministic for ``seed``."""
     tri = vertices[faces]
     cross = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
@@ -279,15 +270,15 @@ def _read_array(path: Path) -> PointCloud:
     return PointCloud(points, colors, extra.get("normals"))
 
 
-def read_scan(
-    path: str | os.PathLike, unit: str = "m", mesh_points: int = 200_000, seed: int = 0
-) -> PointCloud:
-    """A point cloud or mesh file as a :class:`PointCloud` in metres (coordinates times ``UNITS[unit]``).
+def read_scan(path: str | os.PathLike, *, mesh_points: int = 200_000, seed: int = 0) -> PointCloud:
+    """A point cloud or mesh file as a :class:`PointCloud` in the file's own coordinates, as stored.
 
     Meshes (``.obj``, ``.glb``, ``.gltf``, a ``.ply`` with faces) are sampled to ``mesh_points`` points
     uniformly by area with the face normals and the vertex or face colours; ``seed`` makes it repeatable.
+    ``meta``: ``path``, ``format``, ``raw_points`` (the file's points or a mesh's vertices) and
+    ``mesh_sampled``; a mesh's ``faces``, ``surface_area`` (square file units), ``mesh_points`` and
+    ``seed``.
     """
-    scale = check_unit(unit)
     path = Path(path)
     if not path.exists():
         raise InputError(f"scan file not found: {path}")
@@ -315,75 +306,12 @@ def read_scan(
         fmt, cloud = suffix[1:], _read_array(path)
     if not np.issubdtype(np.asarray(cloud.points).dtype, np.number):
         raise InputError(f"{path}: coordinates have type {np.asarray(cloud.points).dtype}; give numbers")
-    cloud.points = np.asarray(cloud.points, dtype=np.float64) * scale
+    cloud.points = np.asarray(cloud.points, dtype=np.float64)
     if cloud.normals is not None:
         cloud.normals = _unit_normals(cloud.normals)
-    meta = {
-        "path": str(path),
-        "format": fmt,
-        "unit": unit,
-        "raw_points": len(cloud.points),
-        "mesh_sampled": False,
-    }
+    meta = {"path": str(path), "format": fmt, "raw_points": len(cloud.points), "mesh_sampled": False}
     meta.update(cloud.meta)
     if meta["mesh_sampled"]:
-        meta.update(
-            surface_area_m2=meta.pop("surface_area") * scale * scale,
-            mesh_points=int(mesh_points),
-            seed=int(seed),
-        )
+        meta.update(mesh_points=int(mesh_points), seed=int(seed))
     cloud.meta = meta
-    return check_cloud(cloud, unit)
-
-
-def _unit_hint(diagonal_m: float, unit: str) -> str | None:
-    """The unit that would make a bounding box of ``diagonal_m`` (read with ``unit``) room-sized."""
-    best = None
-    for name, metres in UNITS.items():
-        d = diagonal_m * metres / UNITS[unit]
-        if name != unit and MIN_DIAGONAL_M <= d <= MAX_DIAGONAL_M:
-            score = abs(math.log(d / 5.0))  # a room is a few metres across
-            if best is None or score < best[0]:
-                best = (score, name)
-    return None if best is None else best[1]
-
-
-def check_cloud(cloud: PointCloud, unit: str) -> PointCloud:
-    """Plausibility checks shared by files and fused sequences; raises InputError, adds warnings.
-
-    Refuses NaN/inf coordinates, fewer than :data:`MIN_POINTS` points and a bounding box diagonal outside
-    [:data:`MIN_DIAGONAL_M`, :data:`MAX_DIAGONAL_M`] metres (naming the ``--unit`` that would fit).
-    Normals that are not unit vectors are dropped with a warning.
-    """
-    check_unit(unit)
-    name = cloud.meta.get("path", "the point cloud")
-    points = cloud.points
-    if points.ndim != 2 or points.shape[1] != 3:
-        raise InputError(f"{name}: points have shape {points.shape}; expected (N, 3)")
-    bad = int((~np.isfinite(points).all(axis=1)).sum())
-    if bad:
-        raise InputError(
-            f"{name}: {bad} of {len(points)} points have NaN or inf coordinates; remove them and retry"
-        )
-    if len(points) < MIN_POINTS:
-        raise InputError(f"{name} has {len(points)} points; a room needs at least {MIN_POINTS}")
-    diagonal = float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
-    if not MIN_DIAGONAL_M <= diagonal <= MAX_DIAGONAL_M:
-        size = f"{diagonal:.0f} m" if diagonal > 1.0 else f"{diagonal * 1000:.1f} mm"
-        verdict, hint = "too large" if diagonal > 1.0 else "too small", _unit_hint(diagonal, unit)
-        if "layout" in cloud.meta:  # fused from depth maps: the depth scale and the poses set its size
-            read, fix = "", "check --depth-scale and that the poses are in metres"
-        else:
-            read = f" with --unit {unit}"
-            fix = f"check --unit (coordinates read as {_UNIT_NAMES[unit]})"
-            fix = fix if hint is None else f"it looks like {_UNIT_NAMES[hint]}: pass --unit {hint}"
-        raise InputError(f"{name} is {size} across{read}: {verdict} for a room; {fix}")
-    if cloud.normals is not None:
-        norm = np.linalg.norm(cloud.normals, axis=1)
-        off = int((~(np.abs(norm - 1.0) < 1e-3)).sum())
-        if off:
-            cloud.warnings.append(f"{off} of {len(points)} normals are zero or not finite; normals dropped")
-            cloud.normals = None
-    cloud.meta["points"] = len(points)
-    cloud.meta["diagonal_m"] = round(diagonal, 4)
     return cloud

@@ -25,6 +25,7 @@ from cuboidcli.io.depth import InputError
 
 if TYPE_CHECKING:
     from cuboidcli.factories import DepthModelOptions
+    from cuboidcli.geometry.vanishing import LineEstimate
 
 #: What an input is, by how it is read: a depth map, a photo (depth from RGB), a scan file, a sequence
 #: folder, points in memory. The first two are frames, the others rooms.
@@ -115,6 +116,11 @@ class Input:
     """A photo: seconds the depth estimation took (part of the fit's time)."""
     room: object = None
     """A room: :class:`cuboidcli.load.room.RoomData` (points, colours, viewpoints, up hint, sequence)."""
+    lines: LineEstimate | None = None
+    """A frame with a photo: what its lines say (down, focal length, room axes) in ``camera``'s frame,
+    the fit's prior on its down direction (:func:`cuboidcli.geometry.down.combine_down`)."""
+    lines_seconds: float | None = None
+    """Seconds finding the photo's lines took (part of the fit's time); None: no photo was read."""
 
     @property
     def kind(self) -> str:
@@ -147,7 +153,9 @@ class Input:
         if self.kind == "frame":
             from cuboidcli.fitting.prepare import frame_input
 
-            return frame_input(self.depth_m, self.camera, config)
+            return frame_input(
+                self.depth_m, self.camera, config, lines=self.lines, depth_predicted=self.source == "photo"
+            )
         from cuboidcli.fitting.room import room_input
 
         cloud = self.room.cloud
@@ -218,7 +226,10 @@ def load(
             depth, photo, options.intrinsics, options.camera, options.depth_scale,
             depth_model=options.depth_model,
         )  # fmt: skip
-        return Input(source, f.camera, f.meta, f.notes, f.depth_m, f.rgb, f.depth_seconds)
+        return Input(
+            source, f.camera, f.meta, f.notes, f.depth_m, f.rgb, f.depth_seconds,
+            lines=f.lines, lines_seconds=f.lines_seconds,
+        )  # fmt: skip
     if source == "points":
         data = room.points_room(x)
     else:

@@ -1,7 +1,9 @@
 """Loading a frame: a depth map (a file or an array) with its camera, or a photo whose depth a network
 estimates (:func:`depth_from_rgb`, the one place depth comes from RGB). The camera is resolved by
 :mod:`cuboidcli.load.camera`. A photo's EXIF orientation is applied, so the frame is upright; ``-K``
-describes the upright image."""
+describes the upright image. A frame's photo (alone or beside its depth map) is read for its lines once,
+here (:func:`photo_lines`): its camera where nothing surer gives one, and the fit's prior on the down
+direction and the room's axes (``FrameData.lines``, recorded as the result's ``input.lines``)."""
 
 from __future__ import annotations
 
@@ -14,6 +16,7 @@ import numpy as np
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.factories import DepthModelOptions, depth_estimator
+from cuboidcli.geometry.vanishing import LineEstimate, estimate_from_lines
 from cuboidcli.io.depth import InputError, check_inputs, read_depth, read_rgb
 from cuboidcli.io.photo import read_photo
 from cuboidcli.io.result import input_record
@@ -91,6 +94,28 @@ class FrameData:
     meta: dict
     depth_seconds: float | None = None
     """Seconds the depth estimation from RGB took (None: the depth was given)."""
+    lines: LineEstimate | None = None
+    """What the photo's lines say (down, focal length, room axes) in ``camera``'s frame; None without a
+    photo or without lines in it."""
+    lines_seconds: float | None = None
+    """Seconds finding the lines took (None: no photo to look at)."""
+
+
+def photo_lines(rgb: np.ndarray, camera: Camera | None) -> tuple[LineEstimate | None, float]:
+    """The lines' estimate of an upright photo (H, W, 3) uint8 seen by ``camera`` (None: the focal length
+    is estimated too, the principal point at the centre), and the seconds it took."""
+    t0 = time.perf_counter()
+    if camera is None:
+        est = estimate_from_lines(rgb)
+    else:
+        est = estimate_from_lines(rgb, camera.fx, camera.fy, camera.cx, camera.cy)
+    return est, time.perf_counter() - t0
+
+
+def lines_in(lines: LineEstimate | None, camera: Camera) -> LineEstimate | None:
+    """The lines' estimate in the frame of the camera the frame is fitted with (the vanishing points
+    back-projected by it; see :meth:`LineEstimate.seen_by`)."""
+    return None if lines is None else lines.seen_by(camera.fx, camera.fy, camera.cx, camera.cy)
 
 
 def load_frame(
@@ -120,6 +145,10 @@ def load_frame(
         rgb, exif = _registered(photo, image_path, depth)
     h, w = depth.shape if depth is not None else rgb.shape[:2]
     camera = cameras.sized(given, w, h, intrinsics, preset) if given else exif
+    lines, lines_seconds = None, None
+    if rgb is not None and rgb.shape[:2] == (h, w):  # an unregistered photo is refused below
+        lines, lines_seconds = photo_lines(rgb, camera)
+        camera = camera or cameras.from_lines(lines, w, h)
     source, seconds, extra = "depth map", None, {}
     if depth is None:
         est = depth_from_rgb(rgb, camera, depth_model, scale)
@@ -138,7 +167,11 @@ def load_frame(
         depth_scale=scale,
         intrinsics_source=camera.source,
     )
-    return FrameData(depth, camera.with_size(w, h), rgb, notes, {**meta, **extra}, seconds)
+    camera = camera.with_size(w, h)
+    lines = lines_in(lines, camera)
+    if lines is not None:
+        extra["lines"] = lines.to_dict()
+    return FrameData(depth, camera, rgb, notes, {**meta, **extra}, seconds, lines, lines_seconds)
 
 
 def array_frame(depth_m, camera: Camera, rgb: np.ndarray | None = None) -> FrameData:

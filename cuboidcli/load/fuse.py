@@ -12,8 +12,9 @@ import numpy as np
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.io import depth as depth_io
 from cuboidcli.io.depth import InputError
-from cuboidcli.io.scan import PointCloud, check_cloud
+from cuboidcli.io.scan import PointCloud
 from cuboidcli.io.sequence import Sequence, SequenceFrame
+from cuboidcli.load.units import check_cloud
 
 #: Pixels back-projected per frame at most: larger frames take every k-th pixel.
 MAX_POINTS_PER_FRAME = 80_000

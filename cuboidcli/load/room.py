@@ -1,7 +1,9 @@
 """Loading a room: a point cloud or mesh file, a posed RGB-D sequence folder (fused here,
 :mod:`cuboidcli.load.fuse`), or points already in memory (an (N, 3[+3]) array, an Open3D point cloud),
-each in its own world frame, metres. What the input says about up (the cameras' mean up, y for glTF, z
-otherwise) is the hint the room's up direction is estimated near; ``--up`` (:func:`parse_up`) gives it."""
+each in its own world frame, metres (a file's coordinates scaled by its ``--unit``; every room checked to
+be room-sized: :mod:`cuboidcli.load.units`). What the input says about up (the cameras' mean up, y for
+glTF, z otherwise) is the hint the room's up direction is estimated near; ``--up`` (:func:`parse_up`) gives
+it."""
 
 from __future__ import annotations
 
@@ -13,8 +15,9 @@ import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.io.depth import InputError
-from cuboidcli.io.scan import PointCloud, check_cloud, is_scan_file, read_scan
+from cuboidcli.io.scan import PointCloud, is_scan_file, read_scan
 from cuboidcli.io.sequence import Sequence, read_sequence, sequence_layout
+from cuboidcli.load.units import check_cloud, check_unit, in_metres
 
 #: Up directions by name for ``--up``.
 UP_NAMES = {"z": (0.0, 0.0, 1.0), "y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0), "x": (1.0, 0.0, 0.0)}
@@ -93,9 +96,10 @@ def load_room(
     depth_scale: float | None = None,
     progress=None,
 ) -> RoomData:
-    """Read a scan file or fuse a sequence folder (every ``every``-th frame; ``intrinsics`` (``-K`` or a
-    ``--camera`` preset) and ``depth_scale`` override the folder's). ``progress(done, total)`` follows the
-    fusion. Raises InputError (one line) for unusable input."""
+    """Read a scan file, its coordinates in ``unit`` (m, cm, mm), or fuse a sequence folder (every
+    ``every``-th frame; ``intrinsics`` (``-K`` or a ``--camera`` preset) and ``depth_scale`` override the
+    folder's). ``progress(done, total)`` follows the fusion. Raises InputError (one line) for unusable
+    input."""
     from cuboidcli.load.fuse import fuse_sequence
 
     p = Path(path)
@@ -113,7 +117,8 @@ def load_room(
         if np.linalg.norm(hint) < 1e-6:
             hint = Z_UP
         return _room(path, cloud, seq, hint / np.linalg.norm(hint), time.perf_counter() - t)
-    cloud = read_scan(p, unit=unit)
+    check_unit(unit)  # before a large file is read
+    cloud = in_metres(read_scan(p), unit)
     hint = np.array([0.0, 1.0, 0.0]) if p.suffix.lower() in (".glb", ".gltf") else Z_UP
     return _room(path, cloud, None, hint, time.perf_counter() - t)
 

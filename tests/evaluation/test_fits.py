@@ -57,3 +57,29 @@ def test_an_evaluation_fits_through_fitter_fit_and_saves_what_it_asked_for(tmp_p
     assert not reusable_fit(path, replace(CONFIG, hypotheses=64), None)
     assert not reusable_fit(path, CONFIG, tmp_path)  # other weights
     assert not reusable_fit(tmp_path / "missing.json", CONFIG, None)
+
+
+@dataclass
+class _PhotoFrame:
+    name: str
+    camera: Camera
+    image: np.ndarray
+
+    def rgb(self) -> np.ndarray:
+        return self.image
+
+
+def test_an_rgb_only_fit_takes_its_down_direction_from_the_images_lines(tmp_path):
+    """--rgb fits the predicted depth as cuboids fit fits a photo: the image's lines (found with the frame's
+    camera) give the down direction, and the saved fit records them and their time."""
+    from tests.geometry.test_vanishing import render_room
+
+    img, down = render_room(500.0, -20.0, 3.0, 30.0, seed=5)
+    frame = _PhotoFrame("room", Camera(500.0, 500.0, 319.5, 239.5, 640, 480), img)
+    config = replace(CONFIG, grid_step=None)
+    cuboids, timing, gravity = fit_and_save(frame, None, config, None, tmp_path, rgb=True)
+    assert gravity.source in ("photo lines", "lines and depth")
+    assert np.degrees(np.arccos(min(1.0, float(gravity.down @ down)))) < 2.0
+    assert list(timing)[:2] == ["depth", "lines"] and timing["lines"] > 0
+    saved = json.loads(saved_fit_path(tmp_path, config.seed, "room").read_text())
+    assert saved["gravity"]["source"] == gravity.source and saved["input"]["lines"]["focal_px"] is None

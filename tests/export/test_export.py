@@ -15,14 +15,14 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid, palette_color
 from cuboidcli.export import (
     OPENCV_TO_GLTF,
-    export_result,
+    FittedData,
     image_paths,
     label_colors,
     node_matrix,
     raycast,
+    write,
     write_glb,
     write_obj,
-    write_outputs,
 )
 from cuboidcli.export.boxmesh import BOX_EDGES, BOX_QUADS, BOX_TRIANGLES, CORNER_SIGNS, SIDE_NORMALS, flat_box
 from cuboidcli.export.overlay import colorize_labels, draw_overlay, label_image
@@ -67,6 +67,10 @@ def _result(cuboids=None) -> FitResult:
     return FitResult(
         camera=CAM, cuboids=_scene() if cuboids is None else cuboids, settings={"tau_sq_m2": 0.004}
     )
+
+
+def _fitted(result: FitResult, depth_m=None, rgb=None) -> FittedData:
+    return FittedData.of_record(result, depth_m=depth_m, rgb=rgb)
 
 
 def _glb_json(path) -> dict:
@@ -163,7 +167,7 @@ def test_glb_with_points_puts_the_cloud_on_the_boxes(tmp_path):
     depth, _ = _depth_and_labels(result.cuboids)
     rgb = np.zeros((CAM.height, CAM.width, 3), np.uint8)
     rgb[..., 0] = np.arange(CAM.width, dtype=np.uint8)[None, :]
-    out = export_result(result, glb_path=tmp_path / "p.glb", depth_m=depth, rgb=rgb, with_points=True)
+    out = write(_fitted(result, depth, rgb), None, (), with_points=True, paths={"glb": tmp_path / "p.glb"})
     scene = trimesh.load(out["glb"], process=False)
     assert sorted(scene.graph.nodes_geometry) == ["object_00", "object_01", "object_02", "points"]
     transform, geom = scene.graph["points"]
@@ -183,7 +187,7 @@ def test_glb_with_points_puts_the_cloud_on_the_boxes(tmp_path):
 
 def test_glb_with_points_without_depth_is_refused(tmp_path):
     with pytest.raises(ValueError, match="depth map"):
-        export_result(_result(), glb_path=tmp_path / "x.glb", with_points=True)
+        write(_fitted(_result()), None, (), with_points=True, paths={"glb": tmp_path / "x.glb"})
 
 
 # ---------------------------------------------------------------------------------------------- PLY
@@ -206,7 +210,7 @@ def test_ply_point_colours_follow_assignment(tmp_path):
     result = _result()
     depth, labels = _depth_and_labels(result.cuboids)
     depth[0, :5] = 0.0  # missing depth is left out
-    out = export_result(result, ply_path=tmp_path / "scene_points.ply", depth_m=depth)
+    out = write(_fitted(result, depth), None, (), paths={"ply": tmp_path / "scene_points.ply"})
     assert out["cuboids_ply"] == tmp_path / "scene_cuboids.ply"
     cloud = trimesh.load(out["points_ply"])
     valid = depth.reshape(-1) > 0
@@ -224,7 +228,7 @@ def test_ply_point_colours_follow_assignment(tmp_path):
 def test_cuboid_ply_mesh(tmp_path):
     result = _result()
     depth, _ = _depth_and_labels(result.cuboids)
-    out = export_result(result, ply_path=tmp_path / "s.ply", depth_m=depth, point_step=4)
+    out = write(_fitted(result, depth), None, (), point_step=4, paths={"ply": tmp_path / "s.ply"})
     assert len(trimesh.load(out["points_ply"]).vertices) == (CAM.width // 4) * (CAM.height // 4)
     mesh = trimesh.load(out["cuboids_ply"], process=False)
     assert mesh.vertices.shape == (72, 3) and mesh.faces.shape == (36, 3)
@@ -238,7 +242,7 @@ def test_cuboid_ply_mesh(tmp_path):
 
 def test_ply_needs_depth(tmp_path):
     with pytest.raises(ValueError, match="depth map"):
-        export_result(_result(), ply_path=tmp_path / "x.ply")
+        write(_fitted(_result()), None, (), paths={"ply": tmp_path / "x.ply"})
 
 
 # ---------------------------------------------------------------------------------------------- OBJ
@@ -354,13 +358,11 @@ def test_overlay_edges_hidden_behind_a_nearer_box():
     assert np.array_equal(only_near, both)
 
 
-def test_write_outputs_writes_everything_next_to_the_stem(tmp_path):
+def test_write_writes_everything_next_to_the_stem(tmp_path):
     result = _result()
     depth, _ = _depth_and_labels(result.cuboids)
     rgb = np.full((CAM.height, CAM.width, 3), 200, np.uint8)
-    written = write_outputs(
-        result, tmp_path / "scene.json", depth_m=depth, rgb=rgb, glb=True, ply=True, obj=True, overlay=True
-    )
+    written = write(_fitted(result, depth, rgb), tmp_path / "scene.json", ("glb", "ply", "obj", "overlay"))
     names = {k: p.name for k, p in written.items()}
     assert names == {
         "glb": "scene.glb",
@@ -385,13 +387,16 @@ def test_write_outputs_writes_everything_next_to_the_stem(tmp_path):
 
 def test_overlay_size_mismatch_is_a_clear_error(tmp_path):
     with pytest.raises(ValueError, match="64x48"):
-        export_result(_result(), overlay_path=tmp_path / "o.png", rgb=np.zeros((10, 10, 3), np.uint8))
+        write(
+            _fitted(_result(), rgb=np.zeros((10, 10, 3), np.uint8)),
+            None,
+            (),
+            paths={"overlay": tmp_path / "o.png"},
+        )
 
 
 def test_a_result_without_cuboids_still_exports(tmp_path):
-    written = write_outputs(
-        FitResult(camera=CAM, cuboids=[]), tmp_path / "e", glb=True, obj=True, overlay=True
-    )
+    written = write(_fitted(FitResult(camera=CAM, cuboids=[])), tmp_path / "e", ("glb", "obj", "overlay"))
     assert trimesh.load(written["glb"]).graph.nodes_geometry == []
     assert (cv2.imread(str(written["labels"]), cv2.IMREAD_UNCHANGED) == 0).all()
     assert "o cuboid" not in written["obj"].read_text()

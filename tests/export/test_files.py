@@ -8,7 +8,7 @@ import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.export import write_outputs
+from cuboidcli.export import FittedData, write
 from cuboidcli.export.files import (
     output_files,
     output_paths,
@@ -30,7 +30,7 @@ def test_result_names_of_inputs(tmp_path):
 
 
 def test_output_paths_in_the_order_they_are_written():
-    paths = output_paths("out/x", glb=True, ply=True, obj=True, overlay=True, scenes=("html", "mjcf"))
+    paths = output_paths("out/x", ("mjcf", "html", "overlay", "obj", "ply", "glb"))  # written in table order
     assert {k: str(p) for k, p in paths.items()} == {
         "glb": "out/x.glb",
         "points_ply": "out/x_points.ply",
@@ -44,7 +44,7 @@ def test_output_paths_in_the_order_they_are_written():
         "html": "out/x.html",
         "mjcf": "out/x_mjcf.xml",
     }
-    assert output_files("out/x.json", glb=True, ply=False, overlay=False, scenes=()) == [
+    assert output_files("out/x.json", ["glb"]) == [
         Path("out/x.glb"),
         Path("out/x.json"),
     ]
@@ -55,7 +55,8 @@ def test_the_writer_writes_exactly_the_named_files(tmp_path):
     depth = np.full((24, 32), 2.0, np.float32)
     result = FitResult(camera, [Cuboid([0.0, 0.0, 2.5], [0.5, 0.4, 0.3], np.eye(3))])
     stem = tmp_path / "x"
-    written = write_outputs(result, f"{stem}.json", depth_m=depth, glb=True, ply=True, obj=True, overlay=True)
-    named = output_paths(stem, glb=True, ply=True, obj=True, overlay=True)
+    kinds = ("glb", "ply", "obj", "overlay")
+    written = write(FittedData.of_record(result, depth_m=depth), f"{stem}.json", kinds)
+    named = output_paths(stem, kinds)
     assert {k: Path(p) for k, p in written.items()} == named
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in named.values())

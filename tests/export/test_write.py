@@ -15,7 +15,7 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.export import OUTPUTS, FittedData, kinds_for, missing_extra, write, write_json_last
 from cuboidcli.export.files import image_paths, output_files, output_paths, ply_paths
-from cuboidcli.export.outputs import overlay_views
+from cuboidcli.export.outputs import load_writer, overlay_views
 from cuboidcli.io.result import FitResult, read_result
 
 CAM = Camera(40.0, 40.0, 15.5, 11.5, 32, 24)
@@ -90,7 +90,7 @@ def test_the_table_drives_the_listed_views():
     assert export.WORLD_SCENES == ("html", "mjcf", "urdf", "usd", "rrd")
     assert export.EXTRAS == {kind: o.extra for kind, o in OUTPUTS.items()}
     for kind, o in OUTPUTS.items():
-        assert callable(export.load_writer(kind)) and o.kind == kind and set(o.needs) <= set(o.frames)
+        assert callable(load_writer(kind)) and o.kind == kind and set(o.needs) <= set(o.frames)
     # the file names beside a result, and the old path helpers, come from the table's suffixes
     suffixes = [suffix for o in OUTPUTS.values() for _, suffix in o.files]
     assert [str(p).removeprefix("o/x") for p in output_paths("o/x", kinds=OUTPUTS).values()] == suffixes
@@ -117,25 +117,32 @@ def test_write_of_a_frame_writes_exactly_the_named_files(tmp_path):
     kinds = _installed(FRAME_KINDS)
     assert {"glb", "ply", "obj", "overlay", "urdf"} <= set(kinds)
     written = write_json_last(_frame(), tmp_path / "x.json", kinds, with_points=True)
-    named = output_files(tmp_path / "x.json", kinds=kinds)
+    named = output_files(tmp_path / "x.json", kinds)
     assert list(written.values()) == named  # in writing order, the JSON last
     assert list(written)[:4] == ["glb", "points_ply", "cuboids_ply", "obj"] and list(written)[-1] == "json"
     assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in named)
     assert read_result(written["json"]).cuboids[0].half_size.tolist() == [0.5, 0.4, 0.3]
 
 
-def test_write_into_named_files_and_the_legacy_entry_points_agree(tmp_path):
-    """``paths`` names a kind's main file elsewhere; write_outputs and export_result are write."""
+def test_write_into_named_files(tmp_path):
+    """``paths`` names a kind's main file elsewhere, its other files after it; a stem's ``.json`` is
+    dropped; with no stem, only the named files are written (``cuboids export``)."""
     fitted = _frame()
     (tmp_path / "a").mkdir()
     written = write(fitted, tmp_path / "s", ["overlay"], paths={"ply": tmp_path / "a" / "p.ply"})
     assert written == {
         "points_ply": tmp_path / "a" / "p.ply",
         "cuboids_ply": tmp_path / "a" / "p_cuboids.ply",
-        **output_paths(tmp_path / "s", overlay=True),
+        **output_paths(tmp_path / "s", ["overlay"]),
     }
-    legacy = export.write_outputs(fitted.record, tmp_path / "b.json", depth_m=fitted.depth_m, obj=True)
-    assert legacy == {"obj": tmp_path / "b.obj", "mtl": tmp_path / "b.mtl"}
+    assert write(fitted, tmp_path / "b.json", ["obj"]) == {
+        "obj": tmp_path / "b.obj",
+        "mtl": tmp_path / "b.mtl",
+    }
+    record = FittedData.of_record(fitted.record)  # a saved result without its depth map
+    assert write(record, None, (), paths={"glb": tmp_path / "c.glb"}) == {"glb": tmp_path / "c.glb"}
+    with pytest.raises(ValueError, match="give the stem"):
+        write(record, None, ["obj"])
 
 
 # --------------------------------------------------------------------------------------------- rooms

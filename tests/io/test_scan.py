@@ -1,5 +1,6 @@
 """Point clouds and meshes read into one PointCloud: meshes sampled by area on their surface, colours and
-normals kept, units applied, every bad file a one-line InputError; the real scan fragments when present."""
+normals kept, coordinates as the file stores them, every bad file a one-line InputError; the real scan
+fragments when present. Units and the room checks are the loader's (tests/load/test_units.py)."""
 
 import json
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 
 from cuboidcli.io.depth import InputError
-from cuboidcli.io.scan import SCAN_SUFFIXES, UNITS, PointCloud, check_cloud, is_scan_file, read_scan
+from cuboidcli.io.scan import SCAN_SUFFIXES, is_scan_file, read_scan
 from tests.conftest import SHARED_DATA
 
 EXTENTS = np.array([1.0, 1.0, 4.0])  # the +z face has a quarter of the +x face's area
@@ -141,17 +142,23 @@ def test_arrays(tmp_path):
     assert read_scan(tmp_path / "xyz.npy").meta["format"] == "npy"
 
 
-def test_units_scale(tmp_path):
+def test_coordinates_as_stored(tmp_path):
+    """The reader knows no units: a file in centimetres reads in centimetres, a mesh's surface area in
+    square file units; nothing is checked for being a room (a tiny, a huge or a NaN cloud reads)."""
     points = cloud_arrays()[0]
     np.save(tmp_path / "cm.npy", points * 100)
-    np.save(tmp_path / "mm.npy", points * 1000)
-    assert np.allclose(read_scan(tmp_path / "cm.npy", unit="cm").points, points)
-    assert np.allclose(read_scan(tmp_path / "mm.npy", unit="mm").points, points)
+    assert np.array_equal(read_scan(tmp_path / "cm.npy").points, points * 100)
     box(extents=EXTENTS * 100).export(tmp_path / "box_cm.obj")
-    mesh = read_scan(tmp_path / "box_cm.obj", unit="cm", mesh_points=1000)
-    assert np.abs(mesh.points).max() == pytest.approx(2.0) and mesh.meta["unit"] == "cm"
-    assert mesh.meta["surface_area_m2"] == pytest.approx(18.0)
-    assert set(UNITS) == {"m", "cm", "mm"}
+    mesh = read_scan(tmp_path / "box_cm.obj", mesh_points=1000)
+    assert np.abs(mesh.points).max() == pytest.approx(200.0) and "unit" not in mesh.meta
+    assert mesh.meta["surface_area"] == pytest.approx(180_000.0)
+    assert list(mesh.meta) == [
+        "path", "format", "raw_points", "mesh_sampled", "faces", "surface_area", "mesh_points", "seed",
+    ]  # fmt: skip
+    nan = points.copy()
+    nan[3] = np.nan
+    np.save(tmp_path / "odd.npy", nan[:10] * 1e6)
+    assert len(read_scan(tmp_path / "odd.npy")) == 10
 
 
 def test_is_scan_file():
@@ -164,28 +171,12 @@ def test_bad_inputs(tmp_path):
     refused(tmp_path, "not a file")
     (tmp_path / "room.xyz").write_text("1 2 3\n")
     refused(tmp_path / "room.xyz", "unsupported", ".pcd", ".npz")
-    refused(tmp_path / "room.npy", "unknown unit", "m, cm, mm", unit="ft")
     for name in ("junk.ply", "junk.pcd", "junk.glb", "junk.npy", "junk.npz"):
         (tmp_path / name).write_bytes(b"\x00garbage\xff" * 20)
         refused(tmp_path / name, "cannot read")
     good = write_o3d(tmp_path / "good.pcd", cloud_arrays()[0])
     (tmp_path / "cut.pcd").write_bytes(good.read_bytes()[:-3000])
     refused(tmp_path / "cut.pcd", "corrupt")
-    np.save(tmp_path / "ten.npy", cloud_arrays(10)[0])
-    refused(tmp_path / "ten.npy", "has 10 points", "at least 100")
-    header = [
-        "ply",
-        "format ascii 1.0",
-        "element vertex 0",
-        *(f"property float {c}" for c in "xyz"),
-        "end_header",
-    ]
-    (tmp_path / "empty.ply").write_text("\n".join(header) + "\n")
-    refused(tmp_path / "empty.ply", "has 0 points")
-    nan = cloud_arrays()[0]
-    nan[[3, 7, 9]] = [np.nan, 0, np.inf]
-    np.save(tmp_path / "nan.npy", nan)
-    refused(tmp_path / "nan.npy", "3 of 500 points", "NaN")
     np.save(tmp_path / "four.npy", np.zeros((500, 4)))
     refused(tmp_path / "four.npy", "(500, 4)", "(N, 3)")
     np.save(tmp_path / "flat.npy", np.zeros(500))
@@ -200,30 +191,6 @@ def test_bad_inputs(tmp_path):
     refused(tmp_path / "flat.obj", "zero surface area")
     box().export(tmp_path / "box.obj")
     refused(tmp_path / "box.obj", "at least 100", mesh_points=10)
-
-
-def test_implausible_scale(tmp_path):
-    points = cloud_arrays()[0]
-    np.save(tmp_path / "mm.npy", points * 1000)
-    np.save(tmp_path / "cm.npy", points * 100)
-    np.save(tmp_path / "tiny.npy", points / 1000)
-    refused(tmp_path / "mm.npy", "millimetres", "--unit mm")
-    refused(tmp_path / "cm.npy", "centimetres", "--unit cm")
-    refused(tmp_path / "tiny.npy", "too small for a room", "check --unit (coordinates read as metres)")
-    np.save(tmp_path / "metres.npy", points)
-    refused(tmp_path / "metres.npy", "too small for a room", "it looks like metres: pass --unit m", unit="mm")
-    np.save(tmp_path / "km.npy", points * 1000 * 1000)
-    assert "too large for a room; check --unit" in refused(tmp_path / "km.npy")
-
-
-def test_check_cloud_on_a_built_cloud():
-    points, _, normals = cloud_arrays()
-    normals[0] = 0.0
-    cloud = check_cloud(PointCloud(points, normals=normals, meta={"path": "fused"}), "m")
-    assert cloud.normals is None and "1 of 500 normals" in cloud.warnings[0]
-    assert cloud.meta["points"] == 500 and 0 < cloud.meta["diagonal_m"] < 6
-    with pytest.raises(InputError, match="fused has 50 points"):
-        check_cloud(PointCloud(points[:50], meta={"path": "fused"}), "m")
 
 
 REAL = [("livingroom_fragment.pcd", "pcd", 113_662), ("frag_115.ply", "ply-mesh", 64_365)]
