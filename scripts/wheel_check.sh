@@ -36,7 +36,7 @@ run venv/bin/cuboids fit --depth d.png --camera nyu --sampler learned --solver n
 run venv/bin/cuboids export --onnx s.onnx
 run venv/bin/cuboids fit --depth d.png --camera nyu --solver onnx --onnx s.onnx --hypotheses 512 -o o.json -q
 run venv/bin/cuboids fit rgb.png -K 518.86,519.47,325.58,253.74 --hypotheses 512 -o r.json -q
-# A photo without any camera information: fitted with the default field of view and one warning.
+# A photo without any camera information: its camera from its lines, else the default field of view (a warning).
 run venv/bin/cuboids fit rgb.png --hypotheses 512 -o p.json -q
 # A Hugging Face model without the hf extra: one line naming the extra, exit 2, nothing written.
 set +e
