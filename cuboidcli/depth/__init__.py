@@ -10,16 +10,28 @@ Building an estimator for a ``--depth-model`` value, the shipped weights include
 :func:`cuboidcli.factories.make_depth_estimator`.
 """
 
-from cuboidcli.depth.estimator import BuiltinDepthEstimator, DepthEstimator, estimate_depth
-from cuboidcli.depth.hf import HFDepthEstimator
-from cuboidcli.depth.onnx import OnnxDepthEstimator
-from cuboidcli.depth.scale import DepthScaling
+from __future__ import annotations
 
-__all__ = [
-    "BuiltinDepthEstimator",
-    "DepthEstimator",
-    "DepthScaling",
-    "HFDepthEstimator",
-    "OnnxDepthEstimator",
-    "estimate_depth",
-]
+#: Public name -> module that defines it, imported on first use: the names of the ONNX conventions
+#: (:mod:`.onnx_presets`), which the option checks read, must not pull in torch.
+_EXPORTS = {
+    "BuiltinDepthEstimator": "cuboidcli.depth.estimator",
+    "DepthEstimator": "cuboidcli.depth.estimator",
+    "estimate_depth": "cuboidcli.depth.estimator",
+    "HFDepthEstimator": "cuboidcli.depth.hf",
+    "OnnxDepthEstimator": "cuboidcli.depth.onnx",
+    "DepthScaling": "cuboidcli.depth.scale",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str):
+    module = _EXPORTS.get(name)
+    if module is None:
+        raise AttributeError(f"module 'cuboidcli.depth' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value

@@ -10,7 +10,10 @@ and the numerical solver (:class:`cuboidcli.solvers.numerical.NumericalSolver`).
 
 from __future__ import annotations
 
-import torch
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    import torch
 
 #: Backend names: "auto" = numba on the CPU, "hybrid" elsewhere; "numba"; "torch".
 BACKENDS = ("auto", "numba", "torch")
@@ -22,6 +25,8 @@ def resolve_backend(name: str, device: torch.device | str) -> str:
 
     Raises ValueError for an unknown name, or for "numba" on a device other than the CPU (the numba
     loops read the points' memory directly and run on the CPU only)."""
+    import torch  # here, not at the top: the settings read BACKENDS, and `cuboids --help` needs no torch
+
     kind = torch.device(device).type
     if name == "auto":
         return "numba" if kind == "cpu" else "hybrid"
