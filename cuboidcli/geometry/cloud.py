@@ -59,6 +59,8 @@ ROOM_HEIGHT_M = (0.6, 1.8, 4.0)
 HINT_TIE = 2.0
 #: Below this confidence the up direction comes with a warning.
 UNSURE = 0.25
+#: Below this confidence the best axis is in a tie with another one: unsure whichever the hint picks.
+TIE = 0.05
 
 
 @dataclass(frozen=True)
@@ -203,7 +205,8 @@ def room_up(
     (:func:`settle_axis`) and becomes its floor's normal (:func:`floor_normal`); the horizontal axes are
     made perpendicular to it. Without a Manhattan frame, or when the chosen axis carries under
     ``min_support`` of the normals and lies more than 45 degrees from the hint, the hint is used as it is.
-    A confidence under :data:`UNSURE` comes with a warning."""
+    A confidence under :data:`UNSURE` comes with a warning, unless the axis the cloud scores best is the
+    one nearest the hint and not in a tie (:data:`TIE`)."""
     hint = np.asarray(hint, dtype=np.float64)
     hint = hint / np.linalg.norm(hint)
     source = "estimated"
@@ -243,7 +246,9 @@ def room_up(
     # the walls' axes refined on their own planes, then made perpendicular to up
     axes = manhattan_axes(-up, _reorder(refine_frame(points[ok], normals[ok], frame), up))
     warning = ""
-    if confidence < UNSURE:
+    # a low margin that the input's own up (its convention, its cameras) agrees with is no doubt worth a
+    # warning (a floor and four walls without a ceiling: 0.13), unless it is a tie
+    if confidence < UNSURE and (best != near or confidence < TIE):
         warning = _unsure(up, "its floor is not clearly the lowest large plane of one direction")
     return RoomUp(up, axes, source, _support(support, frame, up), confidence, warning)
 

@@ -55,6 +55,14 @@ def test_a_clear_floor_overrides_a_wrong_hint():
     assert _angle(up.up, turn[:, 2]) < 0.5 and up.source == "estimated"
 
 
+def test_a_low_margin_the_hint_agrees_with_is_no_warning():
+    """A floor and four tall walls, no ceiling: the floor wins by a small margin; the input's own up agrees,
+    so the confidence is low but nothing is said (a warning on every small room would be noise)."""
+    up = _up(_room(size=(4.0, 3.0, 2.5), floor=8000, wall=5000))
+    assert _angle(up.up, Z) < 1.0 and up.confidence < 0.25
+    assert not up.warning
+
+
 def test_in_a_near_tie_the_hint_decides_and_is_reported_unsure():
     # a cube of a room with a bare floor: every face looks like a floor; the hint picks
     room = _room(size=(3.0, 3.0, 3.0), floor=3000, wall=3000)
