@@ -7,7 +7,8 @@ planning around a table, a detector-style evaluation) need one box per object, l
 groups, after the fit, without changing the cuboids:
 
 1. The candidate points are the fitting points that are not the room's shell: not inliers of a floor, wall
-   or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of one, and above the floor.
+   or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of one, and above the floor under them
+   (:func:`floor_heights`).
 2. Seeds: the inliers of each object cuboid, split into the pieces that touch (neighbours within
    :data:`SEED_REACH` voxel cells). One cuboid laid over two tables gives two seeds; pieces of fewer than
    :data:`MIN_SEED_POINTS` points are no seed.
@@ -55,6 +56,9 @@ SHELL_CLEARANCE = 1.5
 TOP_SLAB_M = 0.1
 #: A group whose box lies at least this much (share of its volume) inside a larger group's box joins it.
 MERGE_OVERLAP = 0.9
+#: A point's floor is the highest floor cuboid whose footprint comes this close to it (m), else the nearest
+#: (the lowest instead lost one of 31 synthetic objects on the bare clouds).
+FLOOR_REACH_M = 0.3
 #: A box whose lowest point is within this many voxels of the floor is extended down to it.
 FLOOR_TOUCH = 3.0
 #: The score's support term is 1 - exp(-points / SCORE_POINTS): half its weight at about 280 fitting points.
@@ -151,6 +155,29 @@ def object_score(local: np.ndarray, lo: np.ndarray, hi: np.ndarray, voxel_m: flo
     return float(support * fill * (1.0 if grounded else SCORE_FLOATING))
 
 
+def floor_heights(level: np.ndarray, floors: list[Cuboid], R: np.ndarray) -> np.ndarray:
+    """(N,) the height of the floor under each point of ``level`` (N, 3) (the room's level frame, ``R``
+    turning it to the world): the top face of the floor cuboid whose footprint is nearest the point (the
+    highest of those within :data:`FLOOR_REACH_M` of it). Real scans bend: one ScanNet room's floor
+    (scene0001_00) rises 0.4 m over 3.5 m, and the room's highest floor cuboid hid the beds on the lower part
+    (recall at IoU 0.25 on scenes 1-3: 43.7 -> 52.9 % seed 0, 42.0 -> 52.1 % seed 1)."""
+    dist, height = [], []
+    for c in floors:
+        k = int(np.argmin(c.half_size))
+        n = R.T @ c.rotation[:, k]
+        n = n if n[2] >= 0 else -n
+        top = R.T @ c.center + n * c.half_size[k]  # a point of the top face, level frame
+        local = (level - R.T @ c.center) @ (R.T @ c.rotation)
+        out = np.maximum(np.abs(local) - c.half_size, 0.0)
+        out[:, k] = 0.0
+        dist.append(np.linalg.norm(out, axis=1))
+        nz = max(float(n[2]), 0.5)
+        height.append(top[2] - (n[0] * (level[:, 0] - top[0]) + n[1] * (level[:, 1] - top[1])) / nz)
+    dist, height = np.array(dist), np.array(height)
+    near = dist <= np.maximum(dist.min(0), FLOOR_REACH_M)
+    return np.where(near, height, -np.inf).max(0)
+
+
 def group_objects(
     points: np.ndarray, labels: np.ndarray, cuboids: list[Cuboid], up: np.ndarray, voxel_m: float
 ) -> list[SceneObject]:
@@ -168,13 +195,13 @@ def group_objects(
     shell = [i for i, c in enumerate(cuboids) if c.kind != "object"]
     floors = [cuboids[i] for i in shell if cuboids[i].kind == "floor"]
     z = R[:, 2]
-    if floors:  # the floor's top surface
-        floor_z = max(c.top(z) for c in floors)
-    elif len(points):
-        floor_z = float(np.percentile(level[:, 2], ROBUST_PERCENTILES[0]))
-    else:
+    if not len(points):
         return []
-    keep = ~np.isin(labels, shell) & (level[:, 2] > floor_z + SHELL_CLEARANCE * voxel_m)
+    if floors:  # the top surface of the floor under each point
+        under = floor_heights(level, floors, R)
+    else:
+        under = np.full(len(points), float(np.percentile(level[:, 2], ROBUST_PERCENTILES[0])))
+    keep = ~np.isin(labels, shell) & (level[:, 2] > under + SHELL_CLEARANCE * voxel_m)
     for i in shell:
         keep &= _outside_distance(points, cuboids[i]) > SHELL_CLEARANCE * voxel_m
     idx = np.flatnonzero(keep)
@@ -215,6 +242,7 @@ def group_objects(
 
     # each group's upright box in its own heading; a group mostly inside another's box joins it
     q = level[idx]
+    under_q = under[idx]
 
     def heading(g: int) -> float:
         part = seeds[g]
@@ -224,6 +252,7 @@ def group_objects(
 
     def extent(members: np.ndarray, theta: float) -> tuple[np.ndarray, np.ndarray]:
         local = q[members] @ _yaw_matrix(theta)
+        floor_z = float(np.median(under_q[members]))
         lo, hi = local.min(0) - voxel_m / 2, local.max(0) + voxel_m / 2
         if lo[2] < floor_z + FLOOR_TOUCH * voxel_m:
             lo[2] = floor_z
@@ -259,7 +288,8 @@ def group_objects(
         parts = {int(p) for p in np.unique(lab[members]) if p >= 0 and cuboids[int(p)].kind == "object"}
         parts |= {seeds[h] for h in np.unique(group[members]) if seeds[h] >= 0}
         box = Cuboid(center, (hi - lo) / 2, rotation, kind="object")
-        score = object_score(q[members] @ _yaw_matrix(headings[g]), lo, hi, voxel_m, lo[2] <= floor_z)
+        grounded = lo[2] <= float(np.median(under_q[members]))
+        score = object_score(q[members] @ _yaw_matrix(headings[g]), lo, hi, voxel_m, grounded)
         objects.append(SceneObject(box, tuple(sorted(parts)), len(members), score))
     objects.sort(key=lambda o: -o.points)
     return objects
