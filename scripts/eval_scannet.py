@@ -16,7 +16,7 @@ import math
 import sys
 from pathlib import Path
 
-from cuboidcli.evaluation.scannet import class_recall, evaluate_scans, scan_names
+from cuboidcli.evaluation.scannet import class_recall, evaluate_scans, pool_rows, scan_names
 from cuboidcli.evaluation.scene_run import json_safe
 
 #: Table columns: (row key, header, format).
@@ -56,6 +56,13 @@ def main() -> None:
     ap.add_argument("--scans", nargs="*", help="the scans to fit (default: every scan of the folder)")
     ap.add_argument("--json", type=Path, help="write the rows and the pooled row here")
     ap.add_argument("--seed", type=int, default=0, help="the fit's seed")
+    ap.add_argument(
+        "--tune",
+        nargs="*",
+        default=["scene0001", "scene0002", "scene0003"],
+        help="scan-name prefixes of the scenes constants are chosen on: pooled rows for them and the rest "
+        "(rescans of one room stay on one side)",
+    )
     args = ap.parse_args()
     names = args.scans or scan_names(args.folder)
     if not names:
@@ -75,6 +82,12 @@ def main() -> None:
         lambda name, row: print(table_line(row), flush=True),
     )
     print(table_line(pooled))
+    prefixes = tuple(args.tune or ())
+    tune = [r for r in rows if r["scan"].startswith(prefixes)] if prefixes else []
+    rest = [r for r in rows if not (prefixes and r["scan"].startswith(prefixes))]
+    for label, part in (("tuning scenes", tune), ("other scenes", rest)):
+        if part and len(part) < len(rows):
+            print(table_line({**pool_rows(part), "scan": f"pooled, {label}"}))
     print(f"\n{pooled['capped']} of {len(rows)} scans stopped at the cuboid cap")
     print("\nrecall at IoU 0.25 by class (pooled): " + ", ".join(
         f"{name} {m}/{n}" for name, (m, n) in class_recall(pooled).items()

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.objects import group_objects
+from cuboidcli.fitting.objects import floor_heights, group_objects, on_wall
 from cuboidcli.geometry.gravity import level_frame
 
 VOXEL = 0.035
@@ -125,3 +125,24 @@ def test_scores_rank_a_standing_table_above_a_floating_scrap():
     tables = [o for o in objects if o.cuboids == (2,)]
     (floating,) = [o for o in objects if o.box.center[2] > 1.0]
     assert min(t.score for t in tables) > 3.0 * floating.score
+
+
+def test_a_thin_box_against_a_wall_is_the_walls():
+    wall = Cuboid([2.0, 4.0, 1.25], [2.0, 0.02, 1.25], np.eye(3), kind="wall")
+    socket = Cuboid([1.0, 3.94, 0.3], [0.1, 0.04, 0.05], np.eye(3), kind="object")
+    cabinet = Cuboid([1.0, 3.68, 0.4], [0.5, 0.3, 0.4], np.eye(3), kind="object")
+    away = Cuboid([1.0, 2.0, 0.3], [0.1, 0.04, 0.05], np.eye(3), kind="object")
+    beyond_its_end = Cuboid([5.0, 3.94, 0.3], [0.1, 0.04, 0.05], np.eye(3), kind="object")
+    assert on_wall(socket, [wall])
+    assert not on_wall(cabinet, [wall])
+    assert not on_wall(away, [wall])
+    assert not on_wall(beyond_its_end, [wall])
+
+
+def test_each_point_stands_on_the_floor_under_it():
+    """A bent scan: two floor cuboids 0.3 m apart; a point over each gets its own floor."""
+    low = Cuboid([1.0, 1.0, -0.01], [1.0, 1.0, 0.01], np.eye(3), kind="floor")
+    high = Cuboid([4.0, 1.0, 0.29], [1.0, 1.0, 0.01], np.eye(3), kind="floor")
+    level = np.array([[1.0, 1.0, 0.5], [4.0, 1.0, 0.5], [7.0, 1.0, 0.5]])
+    under = floor_heights(level, [low, high], np.eye(3))
+    assert np.allclose(under, [0.0, 0.3, 0.3])
