@@ -160,6 +160,17 @@ def test_every_and_camera_reach_a_sequence(sequence, tmp_path):
         (("ROOM", "--grid-step", "4"), "--grid-step does not apply to a room"),
         (("SEQUENCE", "--unit", "cm"), "--unit does not apply to a room"),
         (("--depth", "DEPTH", "--every", "2"), "--every does not apply to a depth map"),
+        # typed at its default value, an option still has to apply to the input
+        (("--depth", "DEPTH", "--voxel", "0.035"), "--voxel does not apply to a depth map"),
+        (("--depth", "DEPTH", "--visibility", "auto"), "--visibility does not apply to a depth map"),
+        (("--depth", "DEPTH", "--unit", "m"), "--unit does not apply to a depth map"),
+        (("ROOM", "--every", "1"), "--every does not apply to a room"),
+        (("--depth", "DEPTH", "--no-skip-existing"), "applies to a folder of inputs, not to one input"),
+        # outputs the result cannot have are refused before the fit
+        (("ROOM", "--overlay"), "--overlay draws a room's cuboids on its sequence's frames"),
+        (("ROOM", "--rrd"), "--rrd is written for a depth map or a photo, not for a room"),
+        (("ROOM", "--rerun"), "--rerun streams fitted frames, not a room"),
+        (("--depth", "DEPTH", "--with-points"), "--with-points adds the points to the GLB: give --glb too"),
     ],
 )
 def test_an_option_that_does_not_apply_is_refused_in_one_line(

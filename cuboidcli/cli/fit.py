@@ -32,6 +32,7 @@ from cuboidcli.weights import DEFAULTS as WEIGHTS
 
 
 def fit(
+    ctx: typer.Context,
     image: Path = typer.Argument(
         None,
         help="RGB image (optional with --depth; used for overlays); without --depth an image or a folder of "
@@ -183,7 +184,7 @@ def fit(
     outputs = Outputs(output, kinds, with_points, rerun, quiet)
     run = Run(workers, ray_target(workers, ray, ray_address), skip_existing)
     request = fit_request(image, depth, settings, fast, depth_model_options, intrinsics, camera, depth_scale,
-                          unit, every, weights, onnx, outputs, run)  # fmt: skip
+                          unit, every, weights, onnx, outputs, run, _typed_options(ctx))  # fmt: skip
     from cuboidcli.cli.fit_run import run_request
 
     with user_errors():
@@ -205,6 +206,7 @@ def fit_request(
     onnx: Path | None,
     outputs: Outputs,
     run: Run,
+    typed: frozenset[str] = frozenset(),
 ) -> FitRequest:
     """The typed request of the options: what the input is, the settings given (checked, one line and exit 2
     for a bad value), how to read the input; an option that does not apply to it is refused."""
@@ -215,7 +217,8 @@ def fit_request(
     model_kind = depth_model_options["kind"]
     if model_kind not in (None, "metric", "relative", "relative-inverse"):
         fail(f"--depth-model-kind {model_kind!r}: choose metric, relative or relative-inverse")
-    given = {k: v for k, v in settings.items() if v is not None and v != getattr(DEFAULTS, k)}
+    # a setting is given when typed (even at its default value) or when it differs from its default
+    given = {k: v for k, v in settings.items() if v is not None and (k in typed or v != getattr(DEFAULTS, k))}
     if isinstance(given.get("up"), str):
         from cuboidcli.io.depth import InputError
         from cuboidcli.load.room import parse_up
@@ -238,11 +241,23 @@ def fit_request(
         model = DepthModelOptions(**opts, device=config.device)
     load = LoadOptions(intrinsics, camera, depth_scale, unit, every, model)
     request = FitRequest(
-        path, image if depth is not None else None, source, folder, config, frozenset(given), load,
+        path, image if depth is not None else None, source, folder, config, frozenset(given), load, typed,
         None if weights is None else str(weights), None if onnx is None else str(onnx), outputs, run,
     )  # fmt: skip
     request.check()
     return request
+
+
+def _typed_options(ctx) -> frozenset[str]:
+    """The parameters of ``cuboids fit`` the user typed (or set through the environment), by name: what
+    was typed must apply to the input even where it equals the default. Empty where the function is called
+    without a command line (``cuboids demo``)."""
+    if not hasattr(ctx, "get_parameter_source"):  # typer's context is its own copy of click's
+        return frozenset()
+    typed = ("COMMANDLINE", "ENVIRONMENT")
+    return frozenset(
+        name for name in ctx.params if getattr(ctx.get_parameter_source(name), "name", None) in typed
+    )
 
 
 def _input(image: Path | None, depth: Path | None) -> tuple[Path, str | None, bool]:

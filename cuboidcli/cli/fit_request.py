@@ -64,6 +64,8 @@ class FitRequest:
     given: frozenset[str]
     """The FitConfig settings the command line gave."""
     load: LoadOptions
+    typed: frozenset[str]
+    """The command's parameters the user typed, by name (also those left at their default value)."""
     weights: str | None
     onnx: str | None
     outputs: Outputs
@@ -97,9 +99,37 @@ class FitRequest:
             fail("IMAGE is a folder: give it without --depth (depth from the images) or use --depth FOLDER")
         if self.source == "depth" and self.image is not None and self.folder:
             fail("--depth FOLDER fits the folder's depth maps without their images; leave IMAGE out")
+        self._check_typed(what)
+        self._check_outputs(what)
         model = self.load.depth_model
         if self.folder and self.source == "photo" and model is not None and model.partial_depth is not None:
             fail("--partial-depth belongs to one image; it cannot align every image of a folder")
+
+    def _check_typed(self, what: str) -> None:
+        """An option typed for an input it does not apply to is refused, even at its default value."""
+        sources = _sources(self)
+        for name in sorted(self.typed):
+            applies = TYPED_APPLIES.get(name)
+            if applies is not None and not any(s in applies for s in sources):
+                if applies == ("folder",):
+                    fail(f"{_flag(name)} applies to a folder of inputs, not to one input; leave it out")
+                fail(f"{_flag(name)} does not apply to {what}; leave it out")
+
+    def _check_outputs(self, what: str) -> None:
+        """Outputs the result cannot have are refused before anything is fitted (the table of outputs says
+        which frame each is written for and what it needs)."""
+        from cuboidcli.export.files import OUTPUTS
+
+        frame = "world" if self.kind == "room" else "opencv"
+        for kind in self.outputs.kinds:
+            if frame not in OUTPUTS[kind].frames:
+                fail(f"--{kind} is written for a depth map or a photo, not for {what}; leave it out")
+        if self.source == "scan" and "overlay" in self.outputs.kinds:
+            fail("--overlay draws a room's cuboids on its sequence's frames; a scan has none: leave it out")
+        if self.outputs.rerun and self.kind == "room":
+            fail(f"--rerun streams fitted frames, not {what}; write a recording of a frame with --rrd")
+        if self.outputs.with_points and "glb" not in self.outputs.kinds:
+            fail("--with-points adds the points to the GLB: give --glb too")
 
 
 def _applies(name: str) -> tuple[str, ...]:
@@ -111,9 +141,37 @@ def _applies(name: str) -> tuple[str, ...]:
 def _flag(name: str) -> str:
     from cuboidcli.cli.options import flags
 
-    special = {"intrinsics": "-K", "depth_model": "--depth-model (and the depth-model options)"}
+    special = {
+        "intrinsics": "-K",
+        "depth_model": "--depth-model (and the depth-model options)",
+        "skip_existing": "--skip-existing/--no-skip-existing",
+    }
     if name in special:
         return special[name]
     if name in {f.name for f in fields(FitConfig)}:
         return flags(name).split("/")[0]
     return "--" + name.replace("_", "-")
+
+
+#: The loading and run options of ``cuboids fit`` (by parameter name) and the inputs they apply to:
+#: sources (:data:`cuboidcli.load.SOURCES`), or "folder" for a folder of inputs.
+TYPED_APPLIES: dict[str, tuple[str, ...]] = {
+    "intrinsics": ("depth", "photo", "sequence"),
+    "camera": ("depth", "photo", "sequence"),
+    "preset": ("depth", "photo", "sequence"),
+    "depth_scale": ("depth", "photo", "sequence"),
+    "unit": ("scan",),
+    "every": ("sequence",),
+    "skip_existing": ("folder",),
+    **dict.fromkeys(
+        ("depth_model", "depth_model_kind", "relative_scale", "relative_shift", "partial_depth",
+         "camera_height", "onnx_preset", "depth_edges"),
+        ("photo",),
+    ),
+}  # fmt: skip
+
+
+def _sources(request: FitRequest) -> tuple[str, ...]:
+    """What the request's inputs can be: its source, a folder of rooms' scans and sequences, and "folder"."""
+    sources = ("scan", "sequence") if request.source is None else (request.source,)
+    return (*sources, "folder") if request.folder else sources
