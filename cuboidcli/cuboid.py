@@ -12,9 +12,6 @@ from dataclasses import dataclass, field
 from itertools import product
 
 import numpy as np
-import torch
-
-from cuboidcli.geometry.rotations import matrix_to_quaternion, quaternion_to_matrix
 
 #: Distinct colours (RGB) shared by every output (JSON, overlays, GLB, PLY), in selection order.
 PALETTE: tuple[tuple[int, int, int], ...] = (
@@ -66,12 +63,15 @@ class Cuboid:
 
     @property
     def quat_wxyz(self) -> np.ndarray:
+        import torch  # torch is loaded when a cuboid is first written, not when the command line starts
+
+        from cuboidcli.geometry.rotations import matrix_to_quaternion
+
         return matrix_to_quaternion(torch.from_numpy(self.rotation)).numpy()
 
     @classmethod
     def from_quat(cls, center, half_size, quat_wxyz, **kw) -> Cuboid:
-        R = quaternion_to_matrix(torch.as_tensor(np.asarray(quat_wxyz, dtype=np.float64))).numpy()
-        return cls(center, half_size, R, **kw)
+        return cls(center, half_size, _quat_matrix(quat_wxyz), **kw)
 
     def corners(self) -> np.ndarray:
         """(8, 3) corners in camera coordinates; corner k has local signs product((-1, 1), repeat=3)[k]."""
@@ -112,7 +112,7 @@ class Cuboid:
         if "rotation" in d:
             rot = np.asarray(d["rotation"], dtype=np.float64)
         elif "quat_wxyz" in d:
-            rot = quaternion_to_matrix(torch.tensor(d["quat_wxyz"], dtype=torch.float64)).numpy()
+            rot = _quat_matrix(d["quat_wxyz"])
         else:
             raise ValueError("cuboid entry has neither 'rotation' nor 'quat_wxyz'")
         kind = d.get("kind", "object")  # results written before kinds existed hold objects only
@@ -121,8 +121,21 @@ class Cuboid:
         return cls(d["center"], d["half_size"], rot, d.get("inlier_gain"), extras, kind)
 
 
-def stack_cuboids(cuboids: list[Cuboid], dtype=torch.float32, device="cpu") -> tuple[torch.Tensor, ...]:
-    """List of cuboids -> (centres (M, 3), half-sizes (M, 3), rotations (M, 3, 3)) tensors."""
+def _quat_matrix(quat_wxyz) -> np.ndarray:
+    """The (3, 3) rotation of a unit quaternion (w, x, y, z)."""
+    import torch
+
+    from cuboidcli.geometry.rotations import quaternion_to_matrix
+
+    return quaternion_to_matrix(torch.as_tensor(np.asarray(quat_wxyz, dtype=np.float64))).numpy()
+
+
+def stack_cuboids(cuboids: list[Cuboid], dtype=None, device="cpu") -> tuple:
+    """List of cuboids -> (centres (M, 3), half-sizes (M, 3), rotations (M, 3, 3)) tensors (float32 unless
+    ``dtype`` says otherwise)."""
+    import torch
+
+    dtype = torch.float32 if dtype is None else dtype
     if not cuboids:
         return (
             torch.zeros(0, 3, dtype=dtype, device=device),

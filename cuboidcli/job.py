@@ -192,11 +192,15 @@ def fit_task(job: Job, source: str, out_json: str) -> Outcome:
     frame's depth source or a room's number of fitting points)."""
     import warnings
 
+    from cuboidcli.io.atomic import OutputError
+
     name = Path(source).name
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             result, _ = job.run(source, out_json)
+    except OutputError:  # a read-only or full output folder fails every input alike: the run stops
+        raise
     except Exception as e:  # this input fails; the run goes on
         return failed(name, e)
     inp = result.input

@@ -187,8 +187,14 @@ class Result:
         from cuboidcli.export import write
         from cuboidcli.export.files import result_stem
 
-        written = write(self, result_stem(json_path), tuple(kinds), with_points=with_points) if kinds else {}
-        return [self.save_json(json_path), *written.values()]
+        def json() -> dict[str, Path]:
+            return {"json": self.save_json(json_path)}
+
+        # one call for every file, so that a folder that fills up or is read-only leaves none of them
+        written = write(
+            self, result_stem(json_path), tuple(kinds), with_points=with_points, last=(json_path, json)
+        )
+        return [written.pop("json"), *written.values()]
 
     def __repr__(self) -> str:
         kinds = sorted({c.kind for c in self.cuboids})

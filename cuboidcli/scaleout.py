@@ -18,6 +18,8 @@ import os
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
+from cuboidcli.io.atomic import OutputError
+
 #: Tasks in flight per worker: enough to keep each busy while results come back.
 IN_FLIGHT_PER_WORKER = 4
 
@@ -89,7 +91,9 @@ def run_tasks(
     """Run ``fn(*task)`` for every task; returns the outcomes in task order and calls
     ``on_result(index, outcome)`` as they arrive. ``names`` name the tasks in failure reports. ``ray``:
     None = no Ray; "" = a local Ray of ``workers`` CPUs (``workers`` 1: all of them); an address (``auto``,
-    ``ray://host:10001``, ``host:6379``) = that cluster. Raises ValueError if Ray is asked for and missing."""
+    ``ray://host:10001``, ``host:6379``) = that cluster. Raises ValueError if Ray is asked for and missing.
+    A task that raises :class:`~cuboidcli.io.atomic.OutputError` (its results cannot be written: a full or
+    read-only folder, which every later task would meet too) ends the run: the error is raised here."""
     if workers < 1:
         raise ValueError(f"workers must be at least 1 (got {workers})")
     outcomes: list[Outcome | None] = [None] * len(tasks)
@@ -105,6 +109,8 @@ def run_tasks(
         for i, task in enumerate(tasks):
             try:
                 record(i, fn(*task))
+            except OutputError:
+                raise
             except Exception as e:  # a task function that raised after all: still only this frame
                 record(i, failed(names[i], e))
     else:
@@ -130,6 +136,9 @@ def _run_processes(fn, tasks, names, workers: int, record) -> None:
                 i = pending.pop(fut)
                 try:
                     record(i, fut.result())
+                except OutputError:
+                    pool.shutdown(cancel_futures=True)
+                    raise
                 except Exception as e:  # the worker process died (memory, a crash in native code)
                     record(i, failed(names[i], e))
                 nxt = next(todo, None)
@@ -185,6 +194,8 @@ def _run_ray(fn, tasks, names, address: str, workers: int, record) -> None:
                 try:
                     record(i, ray.get(ref))
                 except Exception as e:  # the task or its worker failed (RayTaskError, WorkerCrashedError)
+                    if isinstance(getattr(e, "cause", None), OutputError):
+                        raise e.cause from None
                     record(i, failed(names[i], getattr(e, "cause", None) or e))
                 nxt = next(todo, None)
                 if nxt is not None:

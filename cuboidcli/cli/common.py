@@ -98,6 +98,16 @@ def user_errors():
                     )
 
 
+def check_writable(folder: Path, flag: str = "-o") -> None:
+    """One line, exit 2, before any work, when the output ``folder`` (or the nearest existing folder above
+    it, where it is to be made) cannot be written to."""
+    here = Path(folder).absolute()
+    while not here.exists() and here != here.parent:
+        here = here.parent
+    if here.is_dir() and not os.access(here, os.W_OK | os.X_OK):
+        fail(f"cannot write to {folder}: {here} is not writable (choose another folder with {flag})")
+
+
 @contextmanager
 def no_empty_folder(folder: Path):
     """Remove ``folder`` again if it did not exist before the block, the block failed and left it empty

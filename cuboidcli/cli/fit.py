@@ -161,7 +161,7 @@ def fit(
         "A folder: skip frames whose outputs exist and were fitted with the same settings."
     ),
 ) -> None:
-    """Fit cuboids to a depth map (or every depth map in a folder) and write "cuboids/1" JSON.
+    """Fit cuboids to a depth map, a photo, a room scan or an RGB-D sequence and write "cuboids/1" JSON.
 
     With only an RGB image, depth comes from a monocular depth network (the built-in one by default).
     A point cloud or mesh (.ply, .pcd, .obj, .glb/.gltf, .npy/.npz of points) or a posed RGB-D sequence

@@ -10,7 +10,7 @@ from pathlib import Path
 from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 from rich.table import Table
 
-from cuboidcli.cli.common import console, fail, out
+from cuboidcli.cli.common import check_writable, console, fail, out
 from cuboidcli.cli.fit_request import FitRequest
 from cuboidcli.cli.scale_options import end_of_run, run_with_progress
 from cuboidcli.job import FolderRecording, Job
@@ -88,6 +88,7 @@ def fit_one(job: Job, request: FitRequest, stream):
     out_json = request.outputs.output or Path(result_name(request.path))
     if request.kind == "room" and out_json.suffix.lower() != ".json":
         out_json = out_json / "cuboids.json" if out_json.is_dir() else out_json.with_suffix(".json")
+    check_writable(out_json.parent)
     with Progress(
         SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=console,
         transient=True, disable=quiet,
@@ -180,6 +181,7 @@ def fit_folder(job: Job, request: FitRequest, stream=None) -> None:
     out_dir = request.outputs.output or results_folder(folder)
     if out_dir.suffix == ".json" or (out_dir.exists() and not out_dir.is_dir()):
         fail(f"-o {out_dir}: give a folder for the results of the folder {folder}")
+    check_writable(out_dir)
     if "rrd" in job.outputs and job.kind == "frame":  # one recording of the whole folder, written at the end
         job = replace(job, outputs=tuple(k for k in job.outputs if k != "rrd"))
         stream = FolderRecording(stream)

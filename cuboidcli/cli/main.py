@@ -11,8 +11,7 @@ import typer
 from typer.core import TyperGroup
 
 from cuboidcli import __version__
-from cuboidcli.cli.common import quiet_libraries, report_crash
-from cuboidcli.cli.option_table import check_options
+from cuboidcli.cli.common import fail, quiet_libraries, report_crash
 
 #: Set to 1 for the same effect as ``cuboids --debug``.
 DEBUG_ENV = "CUBOIDS_DEBUG"
@@ -32,11 +31,25 @@ def _is_cli_exception(exc: BaseException) -> bool:
     )
 
 
+def _unwritable_message(exc: BaseException) -> str | None:
+    """One line for a file the command could not write (or read) for want of space or permission."""
+    from cuboidcli.io.atomic import UNWRITABLE, OutputError
+
+    if isinstance(exc, OutputError):
+        return str(exc)
+    if isinstance(exc, OSError) and exc.errno in UNWRITABLE:
+        return f"{exc.filename}: {exc.strerror}" if exc.filename else str(exc)
+    return None
+
+
 #: Subcommand groups whose modules are imported only when the group is asked for (its commands, or the
 #: list of all commands for ``cuboids --help``): the train commands take their options from the training
 #: configs, and importing them for every command would load the training package for ``cuboids fit`` too.
 #: Each module has ``group()``, the group as a click command.
 LAZY_GROUPS = {"train": "cuboidcli.cli.train"}
+#: The one-line help ``cuboids --help`` lists for each group of :data:`LAZY_GROUPS`, so that listing the
+#: commands imports none of them (a test checks each line against the group's own help).
+LAZY_HELP = {"train": "Train the learned components (neural solver, ...)."}
 
 
 class CuboidsGroup(TyperGroup):
@@ -50,14 +63,29 @@ class CuboidsGroup(TyperGroup):
     checked against the table of options (:func:`~cuboidcli.cli.option_table.check_options`).
     """
 
+    #: True while ``cuboids --help`` lists the commands: a group not loaded yet is shown by its stored help.
+    _listing = False
+
     def list_commands(self, ctx: click.Context) -> list[str]:
         return [*super().list_commands(ctx), *(name for name in LAZY_GROUPS if name not in self.commands)]
 
+    def format_help(self, ctx, formatter) -> None:
+        self._listing = True
+        try:
+            super().format_help(ctx, formatter)
+        finally:
+            self._listing = False
+
     def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+        if name in LAZY_GROUPS and name not in self.commands and self._listing:
+            return click.Command(name, short_help=LAZY_HELP[name])
         if name in LAZY_GROUPS and name not in self.commands:
             self.add_command(importlib.import_module(LAZY_GROUPS[name]).group(), name)
         command = super().get_command(ctx, name)
-        # every option checked against the one table as it is parsed, whichever module defines it
+        # every option checked against the one table as it is parsed, whichever module defines it; the
+        # table is imported here, as ``cuboids --help`` and ``--version`` need none of it
+        from cuboidcli.cli.option_table import check_options
+
         return None if command is None else check_options(command, name)
 
     def invoke(self, ctx: click.Context):
@@ -72,6 +100,9 @@ class CuboidsGroup(TyperGroup):
         except Exception as exc:
             if _debug(ctx) or _is_cli_exception(exc):
                 raise
+            message = _unwritable_message(exc)
+            if message is not None:  # a read-only or full output folder: the user's to fix, not a bug
+                fail(message)
             report_crash(exc)
             raise typer.Exit(1) from None
 

@@ -10,13 +10,14 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-from collections.abc import Iterable, Iterator, Mapping, MutableMapping
+from collections.abc import Callable, Iterable, Iterator, Mapping, MutableMapping
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from cuboidcli.export.fitted import Fitted, View
+from cuboidcli.io.atomic import OutputError
 
 #: The result frames: a frame's OpenCV camera frame and a room's input frame, and what each result is.
 FRAMES = {"opencv": "frame", "world": "room"}
@@ -278,17 +279,22 @@ def write(
     with_points: bool = False,
     point_step: int | None = None,
     paths: Mapping[str, str | Path] | None = None,
+    last: tuple[str | Path, Callable[[], dict[str, Path]]] | None = None,
 ) -> dict[str, Path]:
     """Write the outputs of ``kinds`` (keys of :data:`OUTPUTS`) of a fitted frame or room beside ``<stem>``
     (``out/scene`` for ``out/scene.json``; a trailing ``.json`` is dropped), in writing order; returns
-    {file key: path}. Not the JSON: the caller writes it last (:func:`write_json_last`), so that where it
-    exists every output is complete.
+    {file key: path}. Not the JSON: :func:`write_json_last` has it written last (``last``), so that where
+    it exists every output is complete.
 
     ``with_points`` adds the input's points to the GLB; a frame's point clouds take every ``point_step``-th
     pixel (None: :func:`cuboidcli.export.writers.cloud_step`). ``paths`` {kind: main file} names files
     elsewhere than beside ``stem`` (their other files named after them). Every kind is checked before
     anything is written (:func:`kinds_for`); a room's overlays are left out when it has no frames to draw
     on, and a frame of a sequence whose depth cannot be read is passed over.
+
+    ``last`` (path, write) writes one more file after the others (the result's JSON). A folder that cannot
+    be written to raises :class:`~cuboidcli.io.atomic.OutputError`, and the files this call created are
+    removed again.
     """
     from cuboidcli.export.writers import Context
 
@@ -302,14 +308,30 @@ def write(
     planned = {kind: kind_paths(kind, stem, main=paths.get(kind), views=views) for kind in todo}
     context = Context(result, with_points=with_points, point_step=point_step)
     written: dict[str, Path] = {}
-    for kind in todo:
-        writer = load_writer(kind)
-        if OUTPUTS[kind].scene:
-            ((key, path),) = planned[kind].items()
-            written[key] = Path(writer(result.record, path, **context.scene_inputs()))
-        else:
-            written.update(writer(context, planned[kind]))
+    targets = [Path(p) for files in planned.values() for p in files.values()]
+    existed = {p for p in [*targets, *([Path(last[0])] if last else [])] if p.exists()}
+    try:
+        for kind in todo:
+            writer = load_writer(kind)
+            if OUTPUTS[kind].scene:
+                ((key, path),) = planned[kind].items()
+                written[key] = Path(writer(result.record, path, **context.scene_inputs()))
+            else:
+                written.update(writer(context, planned[kind]))
+        if last is not None:
+            written.update(last[1]())
+    except OutputError:
+        remove_new(written.values(), existed)
+        raise
     return written
+
+
+def remove_new(paths: Iterable[Path], existed: set[Path]) -> None:
+    """Remove the files of ``paths`` that are not in ``existed``: a result that could not be written whole
+    leaves none of its new files behind (files it replaced stay replaced; its JSON, written last, is not)."""
+    for path in paths:
+        if Path(path) not in existed:
+            Path(path).unlink(missing_ok=True)
 
 
 def write_json_last(
@@ -324,6 +346,8 @@ def write_json_last(
     output of the result was written. Returns {file key: path}, ``"json"`` last."""
     from cuboidcli.io.result import write_result
 
-    written = write(result, result_stem(json_path), kinds, with_points=with_points, point_step=point_step)
-    written["json"] = write_result(json_path, result.record)
-    return written
+    def json() -> dict[str, Path]:
+        return {"json": write_result(json_path, result.record)}
+
+    stem = result_stem(json_path)
+    return write(result, stem, kinds, with_points=with_points, point_step=point_step, last=(json_path, json))

@@ -275,27 +275,33 @@ def test_a_closed_output_pipe_is_not_an_internal_error():
 def test_fit_never_loads_the_training_package(tmp_path):
     """``cuboids fit`` in a fresh process runs without importing ``cuboidcli.learn``: the train commands,
     whose options come from the training configs, are built only when ``cuboids train`` is used."""
+    sample = "cuboidcli/data/sample"
+    fit = ["fit", "--depth", f"{sample}/sample_depth.png", "-K", f"{sample}/camera.json", "--hypotheses=64"]
+    assert _modules_loaded_by([*fit, "-o", str(tmp_path / "r.json")], ("cuboidcli.learn",)) == []
+    assert "cuboidcli.learn.seed_train" in _modules_loaded_by(
+        ["train", "seed", "--help"], ("cuboidcli.learn",)
+    )
+
+
+def _modules_loaded_by(args: list[str], prefixes: tuple[str, ...]) -> list[str]:
+    """The modules starting with one of ``prefixes`` that ``cuboids ARGS`` imports in a fresh process."""
     import subprocess
     import sys
 
     code = (
-        "import sys\n"
+        "import json, sys\n"
         "from cuboidcli.cli.main import app\n"
         "try:\n"
         "    app(sys.argv[1:])\n"
         "except SystemExit as e:\n"
         "    assert not e.code, e.code\n"
-        "print(sorted(m for m in sys.modules if m.startswith('cuboidcli.learn')))\n"
+        f"print(json.dumps(sorted(m for m in sys.modules if m.startswith({prefixes!r}))))\n"
     )
-    sample = "cuboidcli/data/sample"
-    fit = ["fit", "--depth", f"{sample}/sample_depth.png", "-K", f"{sample}/camera.json", "--hypotheses=64"]
-    run = [sys.executable, "-c", code, *fit, "-o", str(tmp_path / "r.json")]
-    out = subprocess.run(run, capture_output=True, text=True, timeout=300, cwd=ROOT)
+    out = subprocess.run(
+        [sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=300, cwd=ROOT
+    )
     assert out.returncode == 0, out.stderr
-    assert out.stdout.strip().splitlines()[-1] == "[]"
-    help_run = [sys.executable, "-c", code, "train", "seed", "--help"]
-    train = subprocess.run(help_run, capture_output=True, text=True, timeout=300, cwd=ROOT)
-    assert "cuboidcli.learn.seed_train" in train.stdout.strip().splitlines()[-1]
+    return eval(out.stdout.strip().splitlines()[-1])
 
 
 def _phone_jpeg(path, rgb_upright: np.ndarray, orientation: int, f35: float | None) -> None:
@@ -460,3 +466,27 @@ def test_the_old_preset_spelling_still_works_and_warns(tmp_path, room_png):
     rows = [line for line in run("fit", "--help").output.splitlines() if "│ --" in line]
     options = [row.strip("│ ").split()[0] for row in rows]
     assert "--camera" in options and "--preset" not in options
+
+
+HEAVY = ("torch", "numba", "cv2", "open3d", "trimesh", "scipy", "PIL", "cuboidcli.learn")
+
+
+START_UP = [["--help"], ["--version"], ["fit", "--help"], ["evaluate", "--help"]]
+
+
+@pytest.mark.parametrize("args", START_UP, ids=" ".join)
+def test_help_and_version_load_no_heavy_library(args):
+    """``cuboids --help``, ``--version`` and a command's ``--help`` start in a fraction of a second: they
+    import none of the numerical libraries (torch alone takes over a second to import)."""
+    assert [m for m in _modules_loaded_by(args, HEAVY) if m.split(".")[0] in HEAVY or m in HEAVY] == []
+
+
+def test_the_listed_help_of_a_lazy_group_is_its_own():
+    """``cuboids --help`` lists ``train`` from a stored line, without importing it: the group's own line."""
+    from cuboidcli.cli.main import LAZY_GROUPS, LAZY_HELP
+
+    assert set(LAZY_HELP) == set(LAZY_GROUPS)
+    for name, module in LAZY_GROUPS.items():
+        group = __import__(module, fromlist=["group"]).group()
+        assert LAZY_HELP[name] == group.help.splitlines()[0], name
+    assert "Train the learned components" in runner.invoke(app, ["--help"]).output
