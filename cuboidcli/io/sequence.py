@@ -156,6 +156,7 @@ def _read_tum(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Camera
         notes.append(f"dropped {dropped} of {len(depth)} depth frames without a pose within {TUM_MAX_DT} s")
     if not frames and depth:
         raise InputError(f"none of the {len(depth)} depth frames has a pose within {TUM_MAX_DT} s in {root}")
+    _note_colourless(frames, notes, f"an rgb.txt entry within {TUM_MAX_DT} s")
     return frames, parse_intrinsics(None, "tum")
 
 
@@ -181,7 +182,22 @@ def _posed_files(root: Path, notes: list[str], skip_nonfinite: bool) -> list[Seq
         frames.append(SequenceFrame(p.stem, p, _color_for(root, p.stem), pose))
     if skipped := len(depth) - len(frames):
         notes.append(f"skipped {skipped} of {len(depth)} frames with invalid (inf/NaN) poses")
+    stems = {p.stem for p in depth}
+    if extra := sorted(p.name for p in (root / "pose").glob("*.txt") if p.stem not in stems):
+        notes.append(f"{len(extra)} pose files have no depth frame (first: pose/{extra[0]}); ignored")
+    _note_colourless(frames, notes, "color/<name>.jpg or .png")
     return frames
+
+
+def _note_colourless(frames: list[SequenceFrame], notes: list[str], where: str) -> None:
+    """A note when some frames have a colour image and others not (all or none is a layout's choice)."""
+    bare = [f for f in frames if f.rgb_path is None]
+    if bare and len(bare) < len(frames):
+        first = bare[0].depth_path.name
+        notes.append(
+            f"{len(bare)} of {len(frames)} depth frames have no colour image (first: {first}, expected "
+            f"{where}); their points are fused without colour and no overlay is drawn on them"
+        )
 
 
 def _read_scannet(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Camera | None]:
@@ -212,6 +228,7 @@ def _read_redwood(root: Path, notes: list[str]) -> tuple[list[SequenceFrame], Ca
     if len(poses) > len(depth):
         notes.append(f"{log.name} has {len(poses)} poses for {len(depth)} depth frames; extra poses ignored")
     frames = [SequenceFrame(p.stem, p, _color_for(root, p.stem), poses[i]) for i, p in enumerate(depth)]
+    _note_colourless(frames, notes, "color/<name>.jpg or .png")
     for js in sorted(root.glob("*.json")):
         try:
             d = json.loads(js.read_text(encoding="utf-8"))

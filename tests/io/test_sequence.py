@@ -274,3 +274,21 @@ def test_real_redwood_sequence():
     used = np.unique(cloud.viewpoints, axis=0)
     assert np.allclose(used, np.array(REDWOOD_CENTRES), atol=1e-6)
     assert cloud.frame_names == ["00000", "00001", "00002", "00003", "00004"]
+
+
+def test_mismatched_counts_are_said(tmp_path):
+    """A frame without its colour image and a pose without its depth frame are fitted around, and said."""
+    root = write_plain(tmp_path)
+    (root / "color" / "00001.png").unlink()
+    np.savetxt(root / "pose" / "00007.txt", POSES[0])
+    seq = read_sequence(root)
+    assert [f.name for f in seq.frames] == ["00000", "00001", "00002"]
+    assert [f.rgb_path is None for f in seq.frames] == [False, True, False]
+    assert len(seq.warnings) == 2, seq.warnings
+    extra, colourless = seq.warnings
+    assert extra.startswith("1 pose files have no depth frame (first: pose/00007.txt)")
+    assert colourless.startswith("1 of 3 depth frames have no colour image (first: 00001.png")
+    for p in (root / "color").iterdir():  # no colour at all is a layout of its own: nothing to say
+        p.unlink()
+    (root / "pose" / "00007.txt").unlink()
+    assert read_sequence(root).warnings == []
