@@ -169,7 +169,7 @@ def folder_inputs(folder: Path, source: str | None) -> tuple[list[Path], int]:
     if source == "photo":
         return photos_in(folder)
     if source == "depth":
-        return depth_maps_in(folder), 0
+        return depth_maps_in(folder)
     return rooms_in(folder), 0
 
 

@@ -171,7 +171,12 @@ def fit_folder(job: Job, request: FitRequest, stream=None) -> None:
     folder, quiet, source = request.path, request.outputs.quiet, request.source
     files, left_out = folder_inputs(folder, source)
     if left_out and not quiet:
-        _note(f"left out {left_out} files that are not colour images (depth maps?)", "[cyan]note:[/]")
+        what = (
+            "colour images (photos?)"
+            if source == "depth"
+            else "files that are not colour images (depth maps?)"
+        )
+        _note(f"left out {left_out} {what}", "[cyan]note:[/]")
     if not files:
         kind = {
             "photo": "colour images (*.png, *.jpg, ...)",

@@ -16,9 +16,28 @@ def _files(folder: Path, suffixes: tuple[str, ...]) -> list[Path]:
     return sorted(p for p in Path(folder).iterdir() if p.suffix.lower() in suffixes and p.is_file())
 
 
-def depth_maps_in(folder: str | Path) -> list[Path]:
-    """The depth maps of a folder (.png, .npy, .npz, .exr), sorted by name."""
-    return _files(Path(folder), DEPTH_SUFFIXES)
+def depth_maps_in(folder: str | Path) -> tuple[list[Path], int]:
+    """The depth maps of a folder (.png, .npy, .npz, .exr), sorted by name, and how many colour PNGs (the
+    frames' photos beside their depth maps) were left out."""
+    files = _files(Path(folder), DEPTH_SUFFIXES)
+    maps = [p for p in files if not _colour_png(p)]
+    return maps, len(files) - len(maps)
+
+
+def _colour_png(path: Path) -> bool:
+    """Whether ``path`` is a PNG of colour type RGB, palette or RGBA, read from its header alone (a depth
+    map is a one-channel PNG)."""
+    if path.suffix.lower() != ".png":
+        return False
+    with open(path, "rb") as f:
+        head = f.read(26)
+    # the 8-byte signature, then the IHDR chunk: length, type, width, height, bit depth, colour type
+    return (
+        len(head) == 26
+        and head[:8] == b"\x89PNG\r\n\x1a\n"
+        and head[12:16] == b"IHDR"
+        and head[25] in (2, 3, 6)
+    )
 
 
 def is_colour_image(path: str | Path) -> bool:

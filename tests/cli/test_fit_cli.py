@@ -490,3 +490,20 @@ def test_the_listed_help_of_a_lazy_group_is_its_own():
         group = __import__(module, fromlist=["group"]).group()
         assert LAZY_HELP[name] == group.help.splitlines()[0], name
     assert "Train the learned components" in runner.invoke(app, ["--help"]).output
+
+
+def test_a_folder_of_depth_maps_leaves_out_the_photos_beside_them(tmp_path):
+    """NYU- and TUM-like folders hold ``x_depth.png`` beside ``x_rgb.png``: the colour PNGs are said and
+    left out, not fitted as depth maps and reported failed."""
+    import shutil
+
+    sample = ROOT / "cuboidcli" / "data" / "sample"
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    shutil.copy(sample / "sample_depth.png", frames / "a_depth.png")
+    shutil.copy(sample / "sample.png", frames / "a_rgb.png")
+    fit = ["fit", "--depth", str(frames), "-K", str(sample / "camera.json"), "--hypotheses=64"]
+    result = runner.invoke(app, [*fit, "-o", str(tmp_path / "out")])
+    assert result.exit_code == 0, result.output
+    assert "left out 1 colour images" in result.output and "1 done, 0 skipped, 0 failed" in result.output
+    assert sorted(p.name for p in (tmp_path / "out").glob("*.json")) == ["a_depth_cuboids.json"]

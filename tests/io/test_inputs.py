@@ -24,10 +24,11 @@ def _frames_folder(root):
     return root
 
 
-def test_depth_maps_are_the_depth_files_sorted_by_name(tmp_path):
+def test_depth_maps_are_the_depth_files_sorted_by_name_without_the_colour_pngs(tmp_path):
     folder = _frames_folder(tmp_path / "frames")
-    names = [p.name for p in depth_maps_in(folder)]
-    assert names == ["a_depth.png", "a_rgb.PNG", "c_depth.npy", "c_rgba.png", "grey.png"]
+    maps, left_out = depth_maps_in(folder)
+    assert [p.name for p in maps] == ["a_depth.png", "c_depth.npy", "grey.png"]
+    assert left_out == 2  # the RGB and the RGBA PNG: the frames' photos
 
 
 def test_photos_are_the_colour_images_and_the_others_are_counted(tmp_path):
