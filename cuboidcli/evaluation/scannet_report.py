@@ -73,8 +73,8 @@ def summary_lines(pooled: dict) -> list[str]:
     lines = ["recall at IoU 0.25 by class (pooled): " + (", ".join(parts) or "no labelled boxes")]
     if pooled.get("scans"):
         lines += [
-            f"labelled boxes per scan: {pooled['labelled']:.1f}; up error against the labelled floor: at "
-            f"most {pooled['up_error_deg']:.2f} deg",
+            f"labelled boxes per scan: {pooled['labelled']:.1f}; largest up error (vs labelled floor): "
+            f"{pooled['up_error_deg']:.1f} deg",
             f"{pooled['capped']} of {pooled['scans']} scans stopped at the cuboid cap",
         ]
     return lines
