@@ -10,6 +10,7 @@ from rich.markup import escape
 from rich.progress import TimeRemainingColumn
 from rich.table import Table
 
+from cuboidcli.cli import evaluate_scannet as scannet
 from cuboidcli.cli import evaluate_scene as rooms
 from cuboidcli.cli.common import console, fail, out, progress_bar, user_errors
 from cuboidcli.cli.options import config_option, device_option, fast_option, fit_config, override_option
@@ -64,13 +65,19 @@ def evaluate(
     data: Path = typer.Argument(
         ...,
         help="Dataset folder: NYU Depth v2 (nyu_depth_v2_labeled.mat + splits.mat), the generic layout "
-        "(depth/, cameras.json, optional cuboids/) or room scans (scene_*/gt.json: cuboids synth --views).",
+        "(depth/, cameras.json, optional cuboids/), room scans (scene_*/gt.json: cuboids synth --views) or "
+        "labelled real scans in ScanNet's layout (NAME_bbox.npy with NAME.ply or NAME_vert.npy).",
     ),
     split: str = typer.Option(
         None, "--split", help="test | train | val (NYU default: test; a folder: per its splits.json)."
     ),
-    limit: int = typer.Option(None, "--limit", help="Evaluate only the first N frames (room scans: rooms)."),
+    limit: int = typer.Option(
+        None, "--limit", help="Evaluate only the first N frames (room scans: rooms; labelled scans: scans)."
+    ),
     frames: str = typer.Option(None, "--frames", help="Comma-separated frame names, e.g. nyu_0001,nyu_0002."),
+    scans: str = typer.Option(
+        None, "--scans", help="Labelled scans: comma-separated scan names, e.g. scene0001_00,scene0003_01."
+    ),
     runs: int = typer.Option(1, "--runs", help="Repeat with seeds SEED..SEED+R-1; report mean ± std."),
     workers: int = workers_option(),
     ray: bool = ray_option(),
@@ -131,8 +138,15 @@ def evaluate(
     object recall and precision (instance images) and the gravity error (known gravity) (docs/evaluate.md).
     Room scans (DATA/scene_*/gt.json, from cuboids synth --views N): each room is fitted whole and scored
     in its world frame (--visibility, --bare; --baseline adds Open3D planes + clusters; -o: scenes.json).
+    Labelled real scans (DATA/NAME_bbox.npy with NAME.ply or NAME_vert.npy, as ScanNet's detection data):
+    each scan is fitted whole and its object boxes scored against the labelled furniture boxes (recall and
+    AP at IoU 0.25 and 0.5, precision, recall per class; --scans, --limit; -o: scannet.json).
     """
     options = dict(locals())  # the parameters named after FitConfig fields set them over the presets'
+    if scannet.is_scannet_run(data):  # DATA holds NAME_bbox.npy files
+        return scannet.evaluate_scannet(data, options)
+    if scans is not None:
+        fail(f"--scans names labelled scans ({scannet.LAYOUT}); {data} holds none")
     if rooms.is_room_run(data, options):  # DATA holds room scans, or a room-only option was given
         return rooms.evaluate_rooms(data, options)
     from cuboidcli.evaluation.outputs import write_outputs

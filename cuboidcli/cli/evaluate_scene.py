@@ -74,6 +74,30 @@ def baseline_option():
     )
 
 
+def refuse(options: dict, refused, why: str) -> None:
+    """One line and exit status 2 for the first of ``refused`` ((parameter, flag, default)) that is given:
+    "FLAG ``why``"."""
+    for name, flag, default in refused:
+        if options[name] != default:
+            fail(f"{flag} {why}")
+
+
+def output_folder(options: dict, written: str) -> Path | None:
+    """``--output``, checked to be a folder or nothing yet (``written`` is the file put into it)."""
+    output = options["output"]
+    if output is not None and output.exists() and not output.is_dir():
+        fail(f"--output {output} is a file; give a folder ({written} is written into it)")
+    return output
+
+
+def limited(items: list, options: dict) -> list:
+    """The first ``--limit`` of ``items`` (all without it); one line and exit status 2 for a limit below 1."""
+    limit = options["limit"]
+    if limit is not None and limit < 1:
+        fail(f"--limit must be at least 1 (got {limit})")
+    return items if limit is None else items[:limit]
+
+
 def is_room_run(data: Path, options: dict) -> bool:
     """Whether ``cuboids evaluate`` evaluates room scans: DATA holds some, or a room-only option is given."""
     from cuboidcli.evaluation.scene_run import scan_candidates
@@ -102,8 +126,9 @@ def scenes_table(report, n: int) -> Table:
     return table
 
 
-def _fitter(options: dict):
-    """The configured Fitter (presets, then the given options over them) and the presets applied."""
+def fitter_from_options(options: dict):
+    """The configured Fitter (presets, then the given options over them) and the presets applied; a whole
+    scan is fitted, so the parts that need a depth map are refused."""
     from cuboidcli.cli.options import fit_config
     from cuboidcli.evaluation.presets import resolve
     from cuboidcli.job import fitter_for
@@ -142,19 +167,14 @@ def evaluate_rooms(data: Path, options: dict) -> None:
         if not run.is_room_scan(folder):
             missing = [name for name in SCAN_FILES if not (folder / name).is_file()]
             fail(f"{folder}: not a complete room scan (no {' or '.join(missing)})")
-    for name, flag, default in FRAME_ONLY:
-        if options[name] != default:
-            fail(f"{flag} applies to frames; room scans take --limit, --visibility, --bare and --baseline")
-    output = options["output"]
-    if output is not None and output.exists() and not output.is_dir():
-        fail(f"--output {output} is a file; give a folder (scenes.json is written into it)")
-    if options["limit"] is not None:
-        if options["limit"] < 1:
-            fail(f"--limit must be at least 1 (got {options['limit']})")
-        folders = folders[: options["limit"]]
+    refuse(
+        options, FRAME_ONLY, "applies to frames; room scans take --limit, --visibility, --bare and --baseline"
+    )
+    output = output_folder(options, "scenes.json")
+    folders = limited(folders, options)
     settings = run.SceneEvalSettings(bare=options["bare"], baseline=options["baseline"])
     with user_errors():
-        fitter, applied = _fitter(options)
+        fitter, applied = fitter_from_options(options)
         with progress_bar("{task.description}", TimeElapsedColumn(), transient=True) as bar:
             task = bar.add_task("rooms", total=len(folders))
 

@@ -110,6 +110,7 @@ OPTIONS: dict[str, dict[str, Check]] = {
         "split": text("a split name (NYU: test, train or val; a folder: one of its splits.json)"),
         "limit": whole(1, 10**9),
         "frames": text("comma-separated frame names", lambda v: any(n.strip() for n in v.split(","))),
+        "scans": text("comma-separated scan names", lambda v: any(n.strip() for n in v.split(","))),
         "runs": whole(1, 1000),
         "workers": WORKERS,
         "ray_address": FIT["ray_address"],

@@ -60,11 +60,21 @@ ON_OBJECT_SHARE = 0.5
 _BOXES, _POINTS, _INSTANCE, _CLASS = "_bbox.npy", "_vert.npy", "_ins_label.npy", "_sem_label.npy"
 
 
+def labelled_names(folder: str | os.PathLike) -> list[str]:
+    """The names of ``folder`` that have a ``_bbox.npy``, sorted, whether or not their points are there: a
+    folder in this layout (empty when ``folder`` is none)."""
+    return sorted(p.name[: -len(_BOXES)] for p in Path(folder).glob(f"*{_BOXES}") if p.is_file())
+
+
+def has_points(folder: str | os.PathLike, name: str) -> bool:
+    """Whether scan ``name`` of ``folder`` has its points: a ``.ply`` or a ``_vert.npy``."""
+    folder = Path(folder)
+    return (folder / f"{name}.ply").is_file() or (folder / f"{name}{_POINTS}").is_file()
+
+
 def scan_names(folder: str | os.PathLike) -> list[str]:
     """The scans of ``folder``, sorted: the names with a ``_bbox.npy`` and a ``.ply`` or ``_vert.npy``."""
-    folder = Path(folder)
-    names = (p.name[: -len(_BOXES)] for p in folder.glob(f"*{_BOXES}"))
-    return sorted(n for n in names if (folder / f"{n}.ply").is_file() or (folder / f"{n}{_POINTS}").is_file())
+    return [n for n in labelled_names(folder) if has_points(folder, n)]
 
 
 def scan_input(folder: str | os.PathLike, name: str) -> Path:
@@ -283,23 +293,31 @@ def pool_rows(rows: list[dict]) -> dict:
     return out
 
 
+#: ``progress(done, total, name, row)``: ``done`` scans of ``total`` are scored; called with ``row`` None as
+#: scan ``name`` starts and with its row once it is scored.
+ScanProgress = Callable[[int, int, str, "dict | None"], None]
+
+
 def evaluate_scans(
     folder: str | os.PathLike,
     fitter,
     names: list[str] | None = None,
-    progress: Callable[[str, dict], None] | None = None,
+    progress: ScanProgress | None = None,
 ) -> tuple[list[dict], dict]:
     """Fit and score the scans ``names`` of ``folder`` (all of :func:`scan_names` by default) one after the
-    other: (their rows, the pooled row). ``progress(name, row)`` after each scan."""
-    rows = []
-    for name in names if names is not None else scan_names(folder):
+    other: (their rows, the pooled row). ``progress`` (:data:`ScanProgress`) before and after each scan."""
+    names = list(names) if names is not None else scan_names(folder)
+    rows: list[dict] = []
+    for name in names:
+        if progress is not None:
+            progress(len(rows), len(names), name, None)
         truth = read_truth(folder, name)
         t = time.perf_counter()
         result = fit_scan(fitter, scan_input(folder, name))
         row = scan_metrics(scan_fit(_document(result), time.perf_counter() - t), truth)
         rows.append(row)
         if progress is not None:
-            progress(name, row)
+            progress(len(rows), len(names), name, row)
     return rows, pool_rows(rows)
 
 

@@ -200,13 +200,19 @@ def json_safe(obj):
     return obj
 
 
-def write_scene_report(path: str | os.PathLike, report: SceneEvalReport, provenance: dict) -> Path:
-    """Write ``report`` and ``provenance`` (version, command, settings, ...) to ``path`` as JSON
-    atomically (schema ``cuboids-scenes/1``); NaN (a ratio of nothing) and inf are written as null."""
+def write_report(path: str | os.PathLike, schema: str, body: dict, provenance: dict) -> Path:
+    """Write an evaluation's ``body`` with its ``provenance`` (command, data, settings, ...), the package
+    version, the ``schema`` name and the machine to ``path`` as JSON, atomically (a run killed while writing
+    leaves the previous file or none, never half of one); NaN (a ratio of nothing) and inf as null."""
     from cuboidcli import __version__
     from cuboidcli.evaluation.provenance import machine_info
     from cuboidcli.io.atomic import atomic_write_json
 
-    doc = {"schema": "cuboids-scenes/1", "version": __version__, **provenance, **report.to_dict()}
-    doc["machine"] = machine_info()
+    doc = {"schema": schema, "version": __version__, **provenance, **body, "machine": machine_info()}
     return atomic_write_json(path, json_safe(doc))
+
+
+def write_scene_report(path: str | os.PathLike, report: SceneEvalReport, provenance: dict) -> Path:
+    """Write ``report`` and ``provenance`` (version, command, settings, ...) to ``path``
+    (:func:`write_report`, schema ``cuboids-scenes/1``)."""
+    return write_report(path, "cuboids-scenes/1", report.to_dict(), provenance)

@@ -7,7 +7,6 @@ import json
 
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
 from cuboidcli import __version__
 from cuboidcli.camera import Camera
@@ -15,6 +14,7 @@ from cuboidcli.evaluation import scene_run
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.load import load
 from cuboidcli.synth.scan import generate_room_scan, write_room_scan
+from tests.evaluation.conftest import one_line_error, run_evaluate
 
 #: A quick estimator: the test is about the command, not the numbers (still well above chance).
 QUICK = ["--max-cuboids", "8", "--hypotheses", "64", "--fast", "--device", "cpu"]
@@ -43,19 +43,9 @@ def rooms(tmp_path_factory):
     return root
 
 
-def _run(app, *args):
-    return CliRunner().invoke(app, ["evaluate", *map(str, args)])
-
-
-def _one_line_error(result, code: int = 2) -> str:
-    assert result.exit_code == code, result.output
-    assert "Traceback" not in result.output and result.output.strip().count("\n") == 0, result.output
-    return result.output
-
-
 def test_room_scans_with_the_baseline(app, rooms, tmp_path):
     out = tmp_path / "out"
-    result = _run(app, rooms, "--baseline", "-o", out, *QUICK)
+    result = run_evaluate(app, rooms, "--baseline", "-o", out, *QUICK)
     assert result.exit_code == 0, result.output
     for text in ("2 room scans", "cuboids (views)", "open3d planes+clusters", "AUC@20 cm %", "wrote"):
         assert text in result.output
@@ -94,7 +84,7 @@ def test_room_scans_with_the_baseline(app, rooms, tmp_path):
 def test_one_scan_as_a_bare_cloud(app, rooms, tmp_path):
     out = tmp_path / "bare"
     quick = [*QUICK[:1], "4", *QUICK[2:]]
-    result = _run(app, rooms / "scene_0001", "--bare", "--visibility", "inside", "-o", out, *quick)
+    result = run_evaluate(app, rooms / "scene_0001", "--bare", "--visibility", "inside", "-o", out, *quick)
     assert result.exit_code == 0, result.output
     assert "1 room scan:" in result.output and "cuboids (inside, bare cloud)" in result.output
     assert "planes+clusters" not in result.output
@@ -142,12 +132,12 @@ def test_scan_folders_are_found(rooms):
 
 def test_a_folder_without_scans(app, tmp_path):
     (tmp_path / "empty").mkdir()
-    text = _one_line_error(_run(app, tmp_path / "empty", "--baseline"))
+    text = one_line_error(run_evaluate(app, tmp_path / "empty", "--baseline"))
     assert "no room scans" in text and "scene_*/" in text
     # a scan cut short before its ground truth was written
     (tmp_path / "cut" / "scene_0000").mkdir(parents=True)
     (tmp_path / "cut" / "scene_0000" / "gt.json").write_text("{}")
-    text = _one_line_error(_run(app, tmp_path / "cut"))
+    text = one_line_error(run_evaluate(app, tmp_path / "cut"))
     assert "not a complete room scan" in text and "truth_points.npz" in text
 
 
@@ -156,7 +146,7 @@ def test_an_unreadable_scan(app, tmp_path):
     scan.mkdir(parents=True)
     (scan / "gt.json").write_text("not json")
     (scan / "truth_points.npz").write_bytes(b"not npz")
-    text = _one_line_error(_run(app, tmp_path / "bad", *QUICK))
+    text = one_line_error(run_evaluate(app, tmp_path / "bad", *QUICK))
     assert "cannot read its ground truth" in text
 
 
@@ -172,10 +162,10 @@ def test_an_unreadable_scan(app, tmp_path):
     ],
 )
 def test_bad_options_in_one_line(app, rooms, args, message):
-    assert message in _one_line_error(_run(app, rooms, *args))
+    assert message in one_line_error(run_evaluate(app, rooms, *args))
 
 
 def test_output_must_be_a_folder(app, rooms, tmp_path):
     target = tmp_path / "file.json"
     target.write_text("x")
-    assert "is a file" in _one_line_error(_run(app, rooms, "-o", target))
+    assert "is a file" in one_line_error(run_evaluate(app, rooms, "-o", target))
