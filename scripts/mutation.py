@@ -91,6 +91,23 @@ TARGETS = (
         )
         for name in ("backend", "scoring", "refine")
     ),
+    # the depth models users bring: ONNX files, Hugging Face checkpoints, and the scale/shift fit of a
+    # relative prediction to metres
+    *(
+        Target(
+            f"depth_{name}",
+            f"cuboidcli/depth/{name}.py",
+            None,
+            (
+                "tests/depth/test_hostile_models.py",
+                "tests/depth/test_onnx_presets.py",
+                "tests/depth/test_hf_depth.py",
+                "tests/depth/test_depth_scale.py",
+                "tests/depth/test_depth_estimator.py",
+            ),
+        )
+        for name in ("onnx", "hf", "scale")
+    ),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.
