@@ -10,6 +10,11 @@ the sampler are built once, before the first frame (weights loading is not timed
     python benchmarks/bench_fit.py [--frames 5] [--fast] [--no-refine] [--sampler sequential]
         [--solver numerical|neural] [--weights PATH] [--hypotheses 4096] [--seed 0]
         [--local-fraction 0.75] [--max-batches 4] [--align free|gravity|manhattan]
+        [--device cpu|cuda|auto] [--log benchmarks/logs/fit_cuda.txt]
+
+The first lines say where it ran: the date, the commit (with "+changes" for a working tree that differs
+from it), the device (the GPU's name on cuda), torch and the CPU. ``--log`` writes everything printed to
+that file as well, for the figures quoted in the documentation.
 
 --weights: a folder (solver_v1.pt / sampler_v2.pt inside) or a .pt file; it goes to the neural solver and
 the learned sampler (the other solvers and samplers have no weights). None = the shipped weights.
@@ -19,8 +24,11 @@ from __future__ import annotations
 
 import argparse
 import resource
+import subprocess
+import sys
 import time
 from dataclasses import replace
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
@@ -44,6 +52,44 @@ def frames(n_synth: int):
                     yield f"{sub}/{f.name}", f.depth_m(), f.camera
 
 
+class Tee:
+    """Writes to the console and to a log file."""
+
+    def __init__(self, *streams) -> None:
+        self.streams = streams
+
+    def write(self, text: str) -> int:
+        for stream in self.streams:
+            stream.write(text)
+            stream.flush()
+        return len(text)
+
+    def flush(self) -> None:
+        for stream in self.streams:
+            stream.flush()
+
+
+def where_it_ran(device: str, machine: dict) -> list[str]:
+    """The date, the commit, the device and the software of a run, as lines."""
+    root = Path(__file__).resolve().parents[1]
+
+    def git(*args: str) -> str:
+        try:
+            return subprocess.run(["git", *args], cwd=root, capture_output=True, text=True).stdout.strip()
+        except OSError:
+            return ""
+
+    commit = git("rev-parse", "--short", "HEAD") or "unknown"
+    if git("status", "--porcelain", "--untracked-files=no"):
+        commit += "+changes"
+    gpu = f" ({machine['cuda']})" if device == "cuda" else ""
+    return [
+        f"date {datetime.now(timezone.utc):%Y-%m-%d %H:%M} UTC, commit {commit}",
+        f"device {device}{gpu}; torch {machine['torch']}; CPU {machine['processor']}, "
+        f"{machine['cpu_count']} cores",
+    ]
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frames", type=int, default=5, help="synthetic frames")
@@ -59,15 +105,28 @@ def main() -> None:
     ap.add_argument("--local-fraction", type=float, default=None, help="share of localised minimal sets")
     ap.add_argument("--max-batches", type=int, default=None, help="adaptive termination: batches per step")
     ap.add_argument("--align", default=None, help="free | gravity | manhattan (default: the library's)")
+    ap.add_argument("--device", default="cpu", help="cpu | cuda | auto (cuda when there is one)")
+    ap.add_argument("--log", type=Path, default=None, help="also write the output to this file")
     args = ap.parse_args()
+    if args.log is not None:
+        args.log.parent.mkdir(parents=True, exist_ok=True)
+        sys.stdout = Tee(sys.stdout, args.log.open("w", encoding="utf-8"))
 
     import torch
 
+    from cuboidcli.evaluation.provenance import machine_info
     from cuboidcli.factories import make_sampler, make_solver
-    from cuboidcli.fitting.config import FitConfig
+    from cuboidcli.fitting.config import FitConfig, resolve_device
     from cuboidcli.fitting.pipeline import ensure_compiled, fit_depth
 
+    try:
+        device = resolve_device(args.device, "--device")
+    except ValueError as e:
+        ap.error(str(e))
+    for line in where_it_ran(device, machine_info()):
+        print(line)
     cfg = FitConfig(
+        device=device,
         hypotheses=args.hypotheses,
         sampler=args.sampler,
         solver=args.solver,
