@@ -134,18 +134,31 @@ def measure(name: str, rgb: np.ndarray, depth_m: np.ndarray, cam: Camera) -> tup
 
 HEADER = (
     f"{'photo':22s} {'down':>6s} {'conf':>5s} {'known K':>7s} {'rot90':>6s} | {'fx true':>7s} "
-    f"{'fx full':>13s} {'conf':>5s} | {'fx crop':>13s} {'conf':>5s} | {'segs':>4s} {'ms':>4s} {'cpu':>4s}"
+    f"{'fx full':>13s} {'conf':>5s} {'used':>15s} | {'fx crop':>13s} {'conf':>5s} {'used':>15s} | "
+    f"{'segs':>4s} {'ms':>4s} {'cpu':>4s}"
 )
+
+
+def used_focal(r: dict, key: str) -> tuple[float, str]:
+    """(fx, source) ``cuboids fit`` takes for the photo (``key`` "full" or "crop") without -K or EXIF:
+    the lines' from a focal confidence of FOCAL_SURE, else the default field of view."""
+    if r[key] is not None and r[key + "_conf"] >= FOCAL_SURE:
+        return r[key], "lines"
+    return r[key + "_default"], "default"
 
 
 def format_row(r: dict) -> str:
     def focal(f):
         return f"{'-':>13s}" if f is None else f"{f:6.0f} ({100 * (f / r['fx'] - 1):+4.0f}%)"
 
+    def used(key):
+        f, source = used_focal(r, key)
+        return f"{f:4.0f} {100 * (f / r['fx'] - 1):+4.0f}% {source[0]}"
+
     return (
         f"{r['name']:22s} {r['down']:6.2f} {r['down_conf']:5.2f} {r['known']:7.2f} {r['rot90']:6.2f} | "
-        f"{r['fx']:7.1f} {focal(r['full'])} {r['full_conf']:5.2f} | {focal(r['crop'])} "
-        f"{r['crop_conf']:5.2f} | {r['segments']:4d} {r['ms']:4.0f} {r['cpu_ms']:4.0f}"
+        f"{r['fx']:7.1f} {focal(r['full'])} {r['full_conf']:5.2f} {used('full'):>15s} | {focal(r['crop'])} "
+        f"{r['crop_conf']:5.2f} {used('crop'):>15s} | {r['segments']:4d} {r['ms']:4.0f} {r['cpu_ms']:4.0f}"
     )
 
 
@@ -156,7 +169,10 @@ def main() -> None:
     args = ap.parse_args()
     if not (args.data / "nyu").is_dir():
         raise SystemExit(f"no real frames in {args.data}")
-    print("down: degrees from the true depth's down; conf: confidence; ms / cpu: wall / CPU time per photo")
+    print(
+        "down: degrees from the true depth's down; conf: confidence; used: the fx cuboids fit takes (l: the "
+        "lines', d: the default field of view); ms / cpu: wall / CPU time per photo"
+    )
     print(HEADER)
     rows = []
     for name, rgb_path, depth_path, cam, scale in frames(args.data):
@@ -187,10 +203,9 @@ def summary(rows: list[dict]) -> None:
 
     def used_within(key, bound=0.10):
         """The fit's fx: the lines' from FOCAL_SURE, else the default field of view."""
-        lines = [r[key + "_conf"] >= FOCAL_SURE and r[key] is not None for r in rows]
-        used = [r[key] if ok else r[key + "_default"] for r, ok in zip(rows, lines, strict=True)]
-        good = sum(abs(f / r["fx"] - 1) <= bound for f, r in zip(used, rows, strict=True))
-        return f"{good}/{len(rows)} ({sum(lines)} from the lines)"
+        used = [used_focal(r, key) for r in rows]
+        good = sum(abs(f / r["fx"] - 1) <= bound for (f, _), r in zip(used, rows, strict=True))
+        return f"{good}/{len(rows)} ({sum(s == 'lines' for _, s in used)} from the lines)"
 
     print(
         f"the fit's fx (lines from confidence {FOCAL_SURE:g}, else the default field of view) within 10 %: "
