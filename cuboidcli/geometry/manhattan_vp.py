@@ -19,10 +19,10 @@ With the focal length unknown, orthogonality ties it to the vanishing points: tw
 f^2 = -(v1 - c) . (v2 - c) with c the principal point (Caprile and Torre, "Using vanishing points for
 camera calibration", IJCV 1990). It is searched as a profile, because the cost is multimodal in f (which
 segments fit which vanishing point changes with it): the best frame is found and refined at each focal
-length of a log-spaced grid, and the grid's best local minima start the joint refinement. The profile
-also says how sure the estimate is: a frame at a focal length 20 % away that explains the segments about
-as well makes f ambiguous; f is not observable at all when fewer than two vanishing points are finite
-(a camera facing a wall squarely, level).
+length of a log-spaced grid, from the best frames drawn at every focal length of the grid, and the grid's
+best local minima start the joint refinement. The profile also says how sure the estimate is: a frame at
+a focal length 20 % away that explains the segments about as well makes f ambiguous; f is not observable
+at all when fewer than two vanishing points are finite (a camera facing a wall squarely, level).
 
 Vectors are in the OpenCV camera frame (x right, y down, z forward); pixels have their centres at integers.
 """
@@ -122,47 +122,35 @@ def _hypotheses(lines: Segments, rng, phis: np.ndarray, aspect: float) -> tuple[
     return np.stack([d1, d2, np.cross(d1, d2)], axis=-1), ok
 
 
-def _transported(rots: np.ndarray, phi_from: np.ndarray, phi_to: float, aspect: float) -> np.ndarray:
-    """Frames (C, 3, 3) found at focal lengths phi_from (C,) moved to phi_to: their vanishing points kept
-    where they are in the image (directions K_to^-1 K_from d), made a rotation again (the nearest one)."""
-    m = rots.copy()
-    m[:, :2] *= (phi_from / phi_to)[:, None, None]  # the rows of x and y (fy / fx cancels)
-    u, _, vt = np.linalg.svd(m)
-    fix = np.ones((len(rots), 3))
-    fix[:, 2] = np.sign(np.linalg.det(u @ vt))
-    return (u * fix[:, None, :]) @ vt
-
-
 def _focal_profile(scored: Segments, rng, hypotheses: int, aspect: float, thr: float, phi_range):
     """The best frame at each focal length of a log-spaced grid: (phis (J,), rotations (J, 3, 3),
     costs (J,) with the prior's).
 
     Hypotheses drawn at one focal length find the frames its segments suggest there; the right frame
     may be drawn only at another one (its three segments fit together only near there). So the best
-    few frames of every focal length are candidates at all of them, moved there with their vanishing
-    points kept in the image: each focal length's best candidates are refined at it, and the profile
-    is the lower envelope of what all focal lengths found, not a per-focal-length draw (whose noise
-    made false minima and hid true ones).
+    few frames of every focal length are candidates at all of them: each focal length's best candidates
+    are refined at it, and the profile is the lower envelope of what all focal lengths found, not a
+    per-focal-length draw (whose noise made false minima and hid true ones). A candidate keeps its
+    directions (its vanishing points move with the focal length; moving them back by a rotation is
+    impossible, the nearest rotation to K'^-1 K R being R itself), and the refinement takes it from there.
     """
     grid = np.geomspace(phi_range[0], phi_range[1], PROFILE_STEPS)
     per = max(2, hypotheses // len(grid))
     phis = np.repeat(grid, per)
     rots, ok = _hypotheses(scored, rng, phis, aspect)
     cost = np.where(ok, msac_cost(rots, phis, scored, aspect, thr), np.inf)
-    cand, cand_phi = [], []
+    cand = []
     for j in range(len(grid)):
         sl = slice(j * per, (j + 1) * per)
-        for i in _distinct_best(rots[sl], cost[sl], PROFILE_CANDIDATES):
-            cand.append(rots[sl][i])
-            cand_phi.append(grid[j])
+        cand += [rots[sl][i] for i in _distinct_best(rots[sl], cost[sl], PROFILE_CANDIDATES)]
     if not cand:
         return grid[:0], np.zeros((0, 3, 3)), np.zeros(0)
-    cand, cand_phi = np.stack(cand), np.array(cand_phi)
-    moved = np.stack([_transported(cand, cand_phi, phi, aspect) for phi in grid])  # (J, C, 3, 3)
-    at = np.broadcast_to(grid[:, None], moved.shape[:2])
-    first = msac_cost(moved, at, scored, aspect, thr)
+    cand = np.stack(cand)
+    tried = np.broadcast_to(cand, (len(grid),) + cand.shape)  # (J, C, 3, 3): every candidate everywhere
+    at = np.broadcast_to(grid[:, None], tried.shape[:2])
+    first = msac_cost(tried, at, scored, aspect, thr)
     keep = np.argsort(first, axis=1)[:, :PROFILE_REFINED]  # (J, k)
-    starts = np.take_along_axis(moved, keep[..., None, None], axis=1).reshape(-1, 3, 3)
+    starts = np.take_along_axis(tried, keep[..., None, None], axis=1).reshape(-1, 3, 3)
     start_phis = np.repeat(grid, keep.shape[1])
     refined, _ = refine_frames(starts, start_phis, scored, aspect, thr, False, phi_range, steps=4)
     costs = msac_cost(refined, start_phis, scored, aspect, thr).reshape(len(grid), -1)
