@@ -149,7 +149,7 @@ def test_a_centre_crop_keeps_the_focal_length_in_pixels(seed):
     est = estimate_from_lines(np.ascontiguousarray(img[60:420, 80:560]))
     assert est is not None
     assert est.focal_px == pytest.approx(519.0, rel=0.05)  # measured: within 0.5 %
-    assert est.focal_confidence >= FOCAL_SURE  # measured: 0.88-0.91
+    assert est.focal_confidence >= FOCAL_SURE  # measured: 0.83-0.87
     assert _angle(est.down, down) < 2.0
 
 
@@ -331,8 +331,8 @@ def test_real_photos_focal_length(real_photos):
             f"{r['name']}: fx {100 * err:.0f} % off (confidence {conf:.2f}), "
             f"480x360 crop {100 * crop_err:.0f} % off (confidence {crop_conf:.2f})"
         )
-        # a focal length the fit takes is right (measured: 6 of 6 full frames, 1 of 1 crop; the most
-        # confident wrong one, the living room's crop facing its wall, 31 % short at 0.22)
+        # a focal length the fit takes is right (measured: 7 of 7 full frames, 1 of 1 crop; the most
+        # confident wrong one, the living room's crop facing its wall, 31 % short at 0.15)
         assert conf < FOCAL_SURE or err <= 0.10, r["name"]
         assert crop_conf < FOCAL_SURE or crop_err <= 0.10, r["name"]
     print(f"within 10 %: full frames {ok_full}/{len(real_photos)}, crops {ok_crop}/{len(real_photos)}")
