@@ -16,7 +16,12 @@ principal point at the image centre) and is compared with its true depth map:
   confidence reaches ``load.camera.FOCAL_SURE``, else the default field of view (the built-in depth network
   predicts none), on the full frame and on the crop.
 
-    python scripts/eval_photo_lines.py [--data ../shared/data] [--draw /tmp]
+With ``--seeds N``, the focal lengths of the photos and their crops are estimated again with RANSAC
+seeds 0..N-1, and with ``--synth M`` of M synthetic rooms too (:mod:`cuboidcli.synth`, seeds 0..M-1, the
+NYU camera, 640x480, and their 480x360 centre crops): per group, the estimates within 10 %, those the fit
+would take (confidence from FOCAL_SURE) right and wrong, and the highest confidence of a wrong one.
+
+    python scripts/eval_photo_lines.py [--data ../shared/data] [--draw /tmp] [--seeds 4] [--synth 40]
 
 ``--draw DIR`` writes DIR/vp_<name>.png: the segments coloured by the vanishing point they support (red:
 vertical, green and blue: horizontal, grey: none).
@@ -134,18 +139,31 @@ def measure(name: str, rgb: np.ndarray, depth_m: np.ndarray, cam: Camera) -> tup
 
 HEADER = (
     f"{'photo':22s} {'down':>6s} {'conf':>5s} {'known K':>7s} {'rot90':>6s} | {'fx true':>7s} "
-    f"{'fx full':>13s} {'conf':>5s} | {'fx crop':>13s} {'conf':>5s} | {'segs':>4s} {'ms':>4s} {'cpu':>4s}"
+    f"{'fx full':>13s} {'conf':>5s} {'used':>15s} | {'fx crop':>13s} {'conf':>5s} {'used':>15s} | "
+    f"{'segs':>4s} {'ms':>4s} {'cpu':>4s}"
 )
+
+
+def used_focal(r: dict, key: str) -> tuple[float, str]:
+    """(fx, source) ``cuboids fit`` takes for the photo (``key`` "full" or "crop") without -K or EXIF:
+    the lines' from a focal confidence of FOCAL_SURE, else the default field of view."""
+    if r[key] is not None and r[key + "_conf"] >= FOCAL_SURE:
+        return r[key], "lines"
+    return r[key + "_default"], "default"
 
 
 def format_row(r: dict) -> str:
     def focal(f):
         return f"{'-':>13s}" if f is None else f"{f:6.0f} ({100 * (f / r['fx'] - 1):+4.0f}%)"
 
+    def used(key):
+        f, source = used_focal(r, key)
+        return f"{f:4.0f} {100 * (f / r['fx'] - 1):+4.0f}% {source[0]}"
+
     return (
         f"{r['name']:22s} {r['down']:6.2f} {r['down_conf']:5.2f} {r['known']:7.2f} {r['rot90']:6.2f} | "
-        f"{r['fx']:7.1f} {focal(r['full'])} {r['full_conf']:5.2f} | {focal(r['crop'])} "
-        f"{r['crop_conf']:5.2f} | {r['segments']:4d} {r['ms']:4.0f} {r['cpu_ms']:4.0f}"
+        f"{r['fx']:7.1f} {focal(r['full'])} {r['full_conf']:5.2f} {used('full'):>15s} | {focal(r['crop'])} "
+        f"{r['crop_conf']:5.2f} {used('crop'):>15s} | {r['segments']:4d} {r['ms']:4.0f} {r['cpu_ms']:4.0f}"
     )
 
 
@@ -153,10 +171,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--data", type=Path, default=DATA)
     ap.add_argument("--draw", type=Path, default=None, help="write vp_<name>.png drawings here")
+    ap.add_argument("--seeds", type=int, default=0, help="estimate the focal lengths with this many seeds")
+    ap.add_argument("--synth", type=int, default=0, help="and on this many synthetic rooms (with --seeds)")
     args = ap.parse_args()
     if not (args.data / "nyu").is_dir():
         raise SystemExit(f"no real frames in {args.data}")
-    print("down: degrees from the true depth's down; conf: confidence; ms / cpu: wall / CPU time per photo")
+    print(
+        "down: degrees from the true depth's down; conf: confidence; used: the fx cuboids fit takes (l: the "
+        "lines', d: the default field of view); ms / cpu: wall / CPU time per photo"
+    )
     print(HEADER)
     rows = []
     for name, rgb_path, depth_path, cam, scale in frames(args.data):
@@ -168,6 +191,56 @@ def main() -> None:
             draw(rgb, est, args.draw / f"vp_{name.replace('/', '_')}.png")
     summary(rows)
     time_12mp(read_rgb(next((args.data / "nyu").glob("basement_00000_rgb.*"))))
+    if args.seeds:
+        photos = [(name, read_rgb(rgb), cam.fx) for name, rgb, _, cam, _ in frames(args.data)]
+        focal_over_seeds("real", photos, args.seeds)
+        if args.synth:
+            focal_over_seeds("synthetic", synthetic_rooms(args.synth), args.seeds)
+
+
+def centre_crop(rgb: np.ndarray) -> np.ndarray | None:
+    h, w = rgb.shape[:2]
+    if w < CROP[0] or h < CROP[1]:
+        return None
+    y0, x0 = (h - CROP[1]) // 2, (w - CROP[0]) // 2
+    return np.ascontiguousarray(rgb[y0 : y0 + CROP[1], x0 : x0 + CROP[0]])
+
+
+def synthetic_rooms(n: int) -> list[tuple[str, np.ndarray, float]]:
+    """(name, RGB, true fx) of n rendered synthetic rooms seen by the NYU camera (principal point at the
+    image centre, as the lines assume)."""
+    from cuboidcli.synth.scene import generate_scene
+
+    camera = Camera(518.8579, 518.8579, 319.5, 239.5, 640, 480)
+    return [(f"synth/{seed}", generate_scene(seed, camera).rgb, camera.fx) for seed in range(n)]
+
+
+def focal_over_seeds(group: str, photos: list[tuple[str, np.ndarray, float]], seeds: int) -> None:
+    """One line per full frames and crops: estimates within 10 %, taken by the fit (confidence from
+    FOCAL_SURE) right / wrong, and the most confident wrong one, over RANSAC seeds 0..seeds-1."""
+    for part in ("full", "crop"):
+        n = within = right = wrong = 0
+        worst = (0.0, "-")
+        for name, rgb, fx in photos:
+            img = rgb if part == "full" else centre_crop(rgb)
+            if img is None:
+                continue
+            for seed in range(seeds):
+                est = estimate_from_lines(img, seed=seed)
+                n += 1
+                if est is None or est.focal_px is None:
+                    continue
+                ok = abs(est.focal_px / fx - 1) <= 0.10
+                within += ok
+                right += ok and est.focal_confidence >= FOCAL_SURE
+                wrong += not ok and est.focal_confidence >= FOCAL_SURE
+                if not ok and est.focal_confidence > worst[0]:
+                    off = 100 * (est.focal_px / fx - 1)
+                    worst = (est.focal_confidence, f"{name} seed {seed}, {off:+.0f} %")
+        print(
+            f"{group} {part}, seeds 0-{seeds - 1}: fx within 10 % {within}/{n}; confidence >= "
+            f"{FOCAL_SURE:g}: {right} right, {wrong} wrong; most confident wrong {worst[0]:.2f} ({worst[1]})"
+        )
 
 
 def summary(rows: list[dict]) -> None:
@@ -187,10 +260,9 @@ def summary(rows: list[dict]) -> None:
 
     def used_within(key, bound=0.10):
         """The fit's fx: the lines' from FOCAL_SURE, else the default field of view."""
-        lines = [r[key + "_conf"] >= FOCAL_SURE and r[key] is not None for r in rows]
-        used = [r[key] if ok else r[key + "_default"] for r, ok in zip(rows, lines, strict=True)]
-        good = sum(abs(f / r["fx"] - 1) <= bound for f, r in zip(used, rows, strict=True))
-        return f"{good}/{len(rows)} ({sum(lines)} from the lines)"
+        used = [used_focal(r, key) for r in rows]
+        good = sum(abs(f / r["fx"] - 1) <= bound for (f, _), r in zip(used, rows, strict=True))
+        return f"{good}/{len(rows)} ({sum(s == 'lines' for _, s in used)} from the lines)"
 
     print(
         f"the fit's fx (lines from confidence {FOCAL_SURE:g}, else the default field of view) within 10 %: "

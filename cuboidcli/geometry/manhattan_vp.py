@@ -19,10 +19,10 @@ With the focal length unknown, orthogonality ties it to the vanishing points: tw
 f^2 = -(v1 - c) . (v2 - c) with c the principal point (Caprile and Torre, "Using vanishing points for
 camera calibration", IJCV 1990). It is searched as a profile, because the cost is multimodal in f (which
 segments fit which vanishing point changes with it): the best frame is found and refined at each focal
-length of a log-spaced grid, and the grid's best local minima start the joint refinement. The profile
-also says how sure the estimate is: a frame at a focal length 20 % away that explains the segments about
-as well makes f ambiguous; f is not observable at all when fewer than two vanishing points are finite
-(a camera facing a wall squarely, level).
+length of a log-spaced grid, from the best frames drawn at every focal length of the grid, and the grid's
+best local minima start the joint refinement. The profile also says how sure the estimate is: a frame at
+a focal length 20 % away that explains the segments about as well makes f ambiguous; f is not observable
+at all when fewer than two vanishing points are finite (a camera facing a wall squarely, level).
 
 Vectors are in the OpenCV camera frame (x right, y down, z forward); pixels have their centres at integers.
 """
@@ -55,6 +55,10 @@ SCORED_SEGMENTS = 250
 FOV_RANGE_DEG = (25.0, 120.0)
 #: Focal lengths of the profile (log-spaced over FOV_RANGE_DEG).
 PROFILE_STEPS = 14
+#: Frames kept from each focal length's hypotheses as candidates for all focal lengths of the profile,
+PROFILE_CANDIDATES = 3
+#: and the best candidates at each focal length refined there.
+PROFILE_REFINED = 3
 #: A weak prior on the focal length, for when the lines leave it ambiguous (a second vanishing point
 #: backed by few segments, a frame with one far rival): its cost is PRIOR_WEIGHT segments' worth times
 #: ((log f - log f0) / PRIOR_SIGMA)^2, f0 the focal length of a PRIOR_FOV_DEG field of view on the
@@ -120,17 +124,39 @@ def _hypotheses(lines: Segments, rng, phis: np.ndarray, aspect: float) -> tuple[
 
 def _focal_profile(scored: Segments, rng, hypotheses: int, aspect: float, thr: float, phi_range):
     """The best frame at each focal length of a log-spaced grid: (phis (J,), rotations (J, 3, 3),
-    costs (J,) with the prior's), each the best of its hypotheses, refined at its focal length."""
+    costs (J,) with the prior's).
+
+    Hypotheses drawn at one focal length find the frames its segments suggest there; the right frame
+    may be drawn only at another one (its three segments fit together only near there). So the best
+    few frames of every focal length are candidates at all of them: each focal length's best candidates
+    are refined at it, and the profile is the lower envelope of what all focal lengths found, not a
+    per-focal-length draw (whose noise made false minima and hid true ones). A candidate keeps its
+    directions (its vanishing points move with the focal length; moving them back by a rotation is
+    impossible, the nearest rotation to K'^-1 K R being R itself), and the refinement takes it from there.
+    """
     grid = np.geomspace(phi_range[0], phi_range[1], PROFILE_STEPS)
     per = max(2, hypotheses // len(grid))
     phis = np.repeat(grid, per)
     rots, ok = _hypotheses(scored, rng, phis, aspect)
-    cost = np.where(ok, msac_cost(rots, phis, scored, aspect, thr), np.inf).reshape(len(grid), per)
-    best = rots.reshape(len(grid), per, 3, 3)[np.arange(len(grid)), cost.argmin(1)]
-    valid = np.isfinite(cost.min(1))
-    best, _ = refine_frames(best[valid], grid[valid], scored, aspect, thr, False, phi_range, steps=4)
-    grid = grid[valid]
-    return grid, best, msac_cost(best, grid, scored, aspect, thr) + _prior(grid, thr)
+    cost = np.where(ok, msac_cost(rots, phis, scored, aspect, thr), np.inf)
+    cand = []
+    for j in range(len(grid)):
+        sl = slice(j * per, (j + 1) * per)
+        cand += [rots[sl][i] for i in _distinct_best(rots[sl], cost[sl], PROFILE_CANDIDATES)]
+    if not cand:
+        return grid[:0], np.zeros((0, 3, 3)), np.zeros(0)
+    cand = np.stack(cand)
+    tried = np.broadcast_to(cand, (len(grid),) + cand.shape)  # (J, C, 3, 3): every candidate everywhere
+    at = np.broadcast_to(grid[:, None], tried.shape[:2])
+    first = msac_cost(tried, at, scored, aspect, thr)
+    keep = np.argsort(first, axis=1)[:, :PROFILE_REFINED]  # (J, k)
+    starts = np.take_along_axis(tried, keep[..., None, None], axis=1).reshape(-1, 3, 3)
+    start_phis = np.repeat(grid, keep.shape[1])
+    refined, _ = refine_frames(starts, start_phis, scored, aspect, thr, False, phi_range, steps=4)
+    costs = msac_cost(refined, start_phis, scored, aspect, thr).reshape(len(grid), -1)
+    best = costs.argmin(1)
+    rots_best = refined.reshape(len(grid), -1, 3, 3)[np.arange(len(grid)), best]
+    return grid, rots_best, costs[np.arange(len(grid)), best] + _prior(grid, thr)
 
 
 def _prior(phi, thr):

@@ -37,11 +37,19 @@ DOWN_EVIDENCE = 0.25
 DOWN_SIGMA_DEG = 1.0
 #: The focal length is fully backed when (a) the best frame at a focal length 20 % or more away explains
 #: the segments worse by this many segments' worth,
-FOCAL_MARGIN = 10.0
+FOCAL_MARGIN = 5.0
 #: (b) each of the two vanishing points that fix it holds this share of the segments' length,
-FOCAL_EVIDENCE = 0.1
+FOCAL_EVIDENCE = 0.15
 #: and (c) the relative standard deviation of the focal length (from the covariance) is well below this.
-FOCAL_SIGMA = 0.05
+FOCAL_SIGMA = 0.035
+# The three were chosen on the 11 real photos of ../shared/data and their 480x360 centre crops and on 40
+# synthetic rooms and their crops (cuboidcli.synth, the NYU camera), RANSAC seeds 0-3
+# (scripts/eval_photo_lines.py --seeds 4 --synth 40): no wrong focal length (more than 10 % off) has more
+# than 0.17, the most confident one being the NYU living room's crop, whose sofa edges make a third
+# vanishing point at a focal length 31 % short. With (a) at 10, (b) at 0.1 and (c) at 0.05 it had 0.22,
+# and fewer right ones reached load.camera.FOCAL_SURE (real full frames 24 of 44 against 27, synthetic
+# full frames 115 of 160 against 127, synthetic crops 62 of 160 against 68).
+
 #: Below this share of the segments' length, a vanishing point does not count as seen.
 MIN_SUPPORT = 0.02
 #: Three directions fitted to N segments with no common structure (random lines, round things) explain

@@ -23,8 +23,8 @@ __all__ = ["DEFAULT_FOV_DEG", "centred_intrinsics", "default_camera", "given_cam
 
 #: The lines' ``focal_confidence`` from which their focal length is the camera's. Chosen on the 11 real
 #: photos of ../shared/data and their 480x360 centre crops (scripts/eval_photo_lines.py): the 8 of 22
-#: estimates at 0.25 or more are all within 7 % of the true fx; below it right and wrong ones mix (the
-#: NYU living room's crop, facing its wall, is 31 % short at 0.22).
+#: estimates at 0.25 or more are all within 4 % of the true fx; the most confident wrong one (the NYU
+#: living room's crop, facing its wall, 31 % short) has 0.15.
 FOCAL_SURE = 0.25
 
 #: Stands in for "no intrinsics given" where only their depth scale is asked for.
