@@ -62,7 +62,11 @@ def fit(
         None, "--depth-scale", help="Metres per depth-PNG unit.", show_default="0.001"
     ),
     output: Path = typer.Option(
-        None, "--output", "-o", help="Output JSON (or folder for a folder of depth maps)."
+        None,
+        "--output",
+        "-o",
+        help="Output JSON, or an existing folder to write it into (for a folder of inputs: the folder of "
+        "results).",
     ),
     hypotheses: int = config_option("hypotheses"),
     max_cuboids: int = config_option("max_cuboids", show_default=shown_default("max_cuboids")),

@@ -86,8 +86,10 @@ def fit_one(job: Job, request: FitRequest, stream):
 
     quiet = request.outputs.quiet
     out_json = request.outputs.output or Path(result_name(request.path))
-    if request.kind == "room" and out_json.suffix.lower() != ".json":
-        out_json = out_json / "cuboids.json" if out_json.is_dir() else out_json.with_suffix(".json")
+    if out_json.is_dir():  # an existing folder: the result goes into it
+        out_json = out_json / ("cuboids.json" if request.kind == "room" else result_name(request.path))
+    elif out_json.suffix.lower() != ".json":
+        out_json = out_json.with_suffix(".json")
     check_writable(out_json.parent)
     with Progress(
         SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=console,

@@ -507,3 +507,17 @@ def test_a_folder_of_depth_maps_leaves_out_the_photos_beside_them(tmp_path):
     assert result.exit_code == 0, result.output
     assert "left out 1 colour images" in result.output and "1 done, 0 skipped, 0 failed" in result.output
     assert sorted(p.name for p in (tmp_path / "out").glob("*.json")) == ["a_depth_cuboids.json"]
+
+
+def test_output_into_an_existing_folder_and_a_name_without_json(tmp_path):
+    """``-o DIR`` with an existing folder writes the frame's result into it, named after the input; a name
+    without ``.json`` gets it (a file named like a folder would be a trap)."""
+    sample = ROOT / "cuboidcli" / "data" / "sample"
+    camera = str(sample / "camera.json")
+    fit = ["fit", "--depth", str(sample / "sample_depth.png"), "-K", camera, "--hypotheses=64"]
+    out = tmp_path / "out"
+    out.mkdir()
+    assert runner.invoke(app, [*fit, "-o", str(out), "-q"]).exit_code == 0
+    assert [p.name for p in out.iterdir()] == ["sample_depth_cuboids.json"]
+    assert runner.invoke(app, [*fit, "-o", str(tmp_path / "result"), "-q"]).exit_code == 0
+    assert json.loads((tmp_path / "result.json").read_text())["schema"] == "cuboids/1"
