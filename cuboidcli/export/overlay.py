@@ -166,14 +166,14 @@ def draw_overlay(
     _check_image("the background image", background, camera)
     cast = raycast(camera, cuboids) if cast is None else cast
     # Only the pixels a cuboid covers change: they alone are blended in float32 (the same arithmetic as
-    # over the whole image), the rest are copied as they are, with no float copy of the whole image.
-    out = np.array(background, dtype=np.uint8, order="C", copy=True)
+    # over the whole image); the others keep their bytes, so no float copy of the whole image is made.
+    src = np.asarray(background)
+    out = src.copy(order="C") if src.dtype == np.uint8 else _to_uint8(src.astype(np.float32))
     if cuboids:
         colors = np.array([palette_color(k) for k in range(len(cuboids))], dtype=np.float32)
         m = cast.label >= 0
         face = colors[cast.label[m]] * (0.45 + 0.55 * cast.shade[m])[:, None]
-        blended = (1.0 - alpha) * out[m].astype(np.float32) + alpha * face
-        out[m] = np.clip(np.round(blended), 0, 255).astype(np.uint8)
+        out[m] = _to_uint8((1.0 - alpha) * src[m].astype(np.float32) + alpha * face)
     if not cuboids or edge_px <= 0:
         return out
     zbuf = np.where(np.isfinite(cast.depth_m), cast.depth_m, 1e6).astype(np.float32)
@@ -189,6 +189,10 @@ def draw_overlay(
     if names:
         _write_names(out, cuboids, cast.label)
     return out
+
+
+def _to_uint8(values: np.ndarray) -> np.ndarray:
+    return np.clip(np.round(values), 0, 255).astype(np.uint8)
 
 
 def _write_names(img: np.ndarray, cuboids: list[Cuboid], label: np.ndarray) -> None:

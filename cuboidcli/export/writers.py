@@ -128,9 +128,10 @@ def frame_images(
 
 
 def record_image_size(result: FitResult, image: np.ndarray) -> None:
-    """Note in the result (its ``overlay`` entry, written with its JSON) the size its image outputs were
-    drawn at, and that size over the camera's: a large frame's are smaller than its camera's image, so
-    their pixel (u, v) is the camera's ((u + 0.5) / scale - 0.5, (v + 0.5) / scale - 0.5)."""
+    """Note in the result (its ``overlay`` entry, written with its JSON) the size (width, height) its image
+    outputs were drawn at and ``scale``, that width over the camera's. A large frame's are smaller than
+    its camera's image W x H: their pixel (u, v) is the camera's ((u + 0.5) * W / width - 0.5,
+    (v + 0.5) * H / height - 0.5)."""
     h, w = image.shape[:2]
     scale = w / result.camera.width if result.camera is not None and result.camera.width else 1.0
     result.extras["overlay"] = {"width": int(w), "height": int(h), "scale": round(float(scale), 6)}

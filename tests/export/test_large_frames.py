@@ -144,3 +144,18 @@ def test_writing_the_images_leaves_the_cuboids_as_fitted(tmp_path):
     written = write_json_last(fitted, tmp_path / "big.json", ("overlay", "glb"))
     assert json.loads(written["json"].read_text())["cuboids"] == before
     assert MAX_IMAGE_SIDE == 1600
+
+
+def test_a_float_background_is_blended_from_its_own_values():
+    fitted, _ = _frame(SMALL)
+    cuboids = fitted.record.cuboids
+    cast = raycast(SMALL, cuboids)
+    background = fitted.rgb.astype(np.float64) + 0.4  # values between the bytes
+    got = draw_overlay(background, SMALL, cuboids, cast, edge_px=0)
+    image = background.astype(np.float32)
+    colours = np.array([palette_color(k) for k in range(len(cuboids))], dtype=np.float32)
+    covered = cast.label >= 0
+    faces = colours[np.maximum(cast.label, 0)] * (0.45 + 0.55 * cast.shade)[..., None]
+    whole = np.where(covered[..., None], (1.0 - 0.45) * image + 0.45 * faces, image)
+    assert got.dtype == np.uint8
+    assert np.array_equal(got, np.clip(np.round(whole), 0, 255).astype(np.uint8))
