@@ -54,7 +54,9 @@ def run_once(photo: Path, out_dir: Path, extra: list[str]) -> tuple[float, float
     cmd = [sys.executable, "-m", "cuboidcli.cli.main", "fit", str(photo), "--overlay", "--glb"]
     cmd += ["-o", str(out_dir / f"{photo.stem}.json"), *extra]
     t0 = time.perf_counter()
-    proc = subprocess.Popen(cmd, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    # run from the repository: "python -m" puts the working folder first on the path, so another
+    # checkout there would be measured instead of this one
+    proc = subprocess.Popen(cmd, cwd=repo, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     # wait4 gives this process's own resource use (ru_maxrss in KiB on Linux), not all children's
     _, status, usage = os.wait4(proc.pid, 0)
     wall = time.perf_counter() - t0
