@@ -6,10 +6,12 @@ folder, so the two differ only in size. The runs alternate (small, large, small,
 the machine does weighs on both alike; the table shows each run and the medians, and the large photo's
 median over the small one's. Peak memory is the maximum resident set size of the command's process, as the
 kernel reports it when the process ends; CPU is its user + system time, which other work on a busy machine
-inflates less than the wall time (compare the wall times of runs made on a quiet machine).
+inflates less than the wall time (compare the wall times of runs made on a quiet machine). On a busy machine
+``--single-thread`` runs torch, numba and OpenCV on one thread each: idle worker threads then spin for no
+one, and the CPU time is the work done.
 
     python benchmarks/bench_photo.py PHOTO [--runs 3] [--large 4000x3000] [--small 640x480]
-        [--keep DIR] [-- extra fit options]
+        [--single-thread] [--keep DIR] [-- extra fit options]
 """
 
 from __future__ import annotations
@@ -43,7 +45,18 @@ def make_copy(photo: Path, width: int, height: int, out: Path) -> Path:
     return out
 
 
-def run_once(photo: Path, out_dir: Path, extra: list[str]) -> tuple[float, float, float]:
+#: The thread counts --single-thread sets: torch's and numpy's BLAS (OpenMP), numba's, OpenCV's.
+ONE_THREAD = {
+    "OMP_NUM_THREADS": "1",
+    "MKL_NUM_THREADS": "1",
+    "NUMBA_NUM_THREADS": "1",
+    "OPENCV_FOR_THREADS_NUM": "1",
+}
+
+
+def run_once(
+    photo: Path, out_dir: Path, extra: list[str], single_thread: bool = False
+) -> tuple[float, float, float]:
     """(wall seconds, CPU seconds, peak RSS in MB) of one ``cuboids fit`` of ``photo`` in a fresh
     process."""
     repo = Path(__file__).resolve().parents[1]
@@ -51,6 +64,8 @@ def run_once(photo: Path, out_dir: Path, extra: list[str]) -> tuple[float, float
         **os.environ,
         "PYTHONPATH": os.pathsep.join(filter(None, [str(repo), os.environ.get("PYTHONPATH")])),
     }
+    if single_thread:
+        env.update(ONE_THREAD)
     cmd = [sys.executable, "-m", "cuboidcli.cli.main", "fit", str(photo), "--overlay", "--glb"]
     cmd += ["-o", str(out_dir / f"{photo.stem}.json"), *extra]
     t0 = time.perf_counter()
@@ -73,6 +88,7 @@ def main() -> None:
     ap.add_argument("--runs", type=int, default=3, help="runs of each size, alternating")
     ap.add_argument("--small", type=size, default=(640, 480), help="WxH of the small copy")
     ap.add_argument("--large", type=size, default=(4000, 3000), help="WxH of the large copy")
+    ap.add_argument("--single-thread", action="store_true", help="one thread each for torch, numba, OpenCV")
     ap.add_argument("--keep", type=Path, default=None, help="write the copies and outputs here and keep them")
     ap.add_argument("extra", nargs="*", help="further options of cuboids fit (after --)")
     args = ap.parse_args()
@@ -87,7 +103,7 @@ def main() -> None:
             for k in sizes:
                 out = work / f"out_{k}"
                 out.mkdir(exist_ok=True)
-                wall, cpu, rss = run_once(photos[k], out, args.extra)
+                wall, cpu, rss = run_once(photos[k], out, args.extra, args.single_thread)
                 rows[k].append((wall, cpu, rss))
                 w, h = sizes[k]
                 print(f"run {i + 1} {w}x{h}: {wall:6.2f} s wall {cpu:6.2f} s CPU {rss:7.0f} MB", flush=True)
