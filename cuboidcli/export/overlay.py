@@ -23,6 +23,10 @@ from cuboidcli.io.atomic import atomic_write
 
 #: Background colour (RGB) when there is neither an RGB image nor a depth map.
 BLANK_RGB: tuple[int, int, int] = (32, 32, 32)
+#: The longest side, in pixels, the written images of a larger frame are drawn at. A 12 MP photo drawn at
+#: full size costs seconds and about a gigabyte (a float image to blend, a per-pixel z-buffer, a four-tile
+#: panel four photos wide) for pictures no one views at that size; 1600 px shows the boxes as clearly.
+MAX_IMAGE_SIDE = 1600
 _NEAR_M = 0.01  # edges are clipped to z >= 1 cm in front of the camera
 
 
@@ -161,13 +165,15 @@ def draw_overlay(
 
     _check_image("the background image", background, camera)
     cast = raycast(camera, cuboids) if cast is None else cast
-    img = background.astype(np.float32).copy()
+    # Only the pixels a cuboid covers change: they alone are blended in float32 (the same arithmetic as
+    # over the whole image); the others keep their bytes, so no float copy of the whole image is made.
+    src = np.asarray(background)
+    out = src.copy(order="C") if src.dtype == np.uint8 else _to_uint8(src.astype(np.float32))
     if cuboids:
         colors = np.array([palette_color(k) for k in range(len(cuboids))], dtype=np.float32)
         m = cast.label >= 0
         face = colors[cast.label[m]] * (0.45 + 0.55 * cast.shade[m])[:, None]
-        img[m] = (1.0 - alpha) * img[m] + alpha * face
-    out = np.ascontiguousarray(np.clip(np.round(img), 0, 255).astype(np.uint8))
+        out[m] = _to_uint8((1.0 - alpha) * src[m].astype(np.float32) + alpha * face)
     if not cuboids or edge_px <= 0:
         return out
     zbuf = np.where(np.isfinite(cast.depth_m), cast.depth_m, 1e6).astype(np.float32)
@@ -183,6 +189,10 @@ def draw_overlay(
     if names:
         _write_names(out, cuboids, cast.label)
     return out
+
+
+def _to_uint8(values: np.ndarray) -> np.ndarray:
+    return np.clip(np.round(values), 0, 255).astype(np.uint8)
 
 
 def _write_names(img: np.ndarray, cuboids: list[Cuboid], label: np.ndarray) -> None:
@@ -239,30 +249,89 @@ def make_panel(tiles: list[tuple[str, np.ndarray]], title_px: int = 28, gap_px: 
     return np.concatenate(cols, axis=1)
 
 
+def drawing_size(camera: Camera, max_side: int | None = MAX_IMAGE_SIDE) -> tuple[int, int]:
+    """(width, height) the images of ``camera``'s frame are drawn at: its own size when its longer side
+    is at most ``max_side`` (None: no bound), else shrunk to ``max_side`` on the longer side, keeping the
+    aspect ratio."""
+    w, h = int(camera.width), int(camera.height)
+    if max_side is None or max(w, h) <= max_side:
+        return w, h
+    s = max_side / max(w, h)
+    return max(1, int(round(w * s))), max(1, int(round(h * s)))
+
+
+def shrink_inputs(
+    camera: Camera,
+    rgb: np.ndarray | None,
+    depth_m: np.ndarray | None,
+    max_side: int | None = MAX_IMAGE_SIDE,
+) -> tuple[Camera, np.ndarray | None, np.ndarray | None]:
+    """The camera, image and depth map of a frame at :func:`drawing_size`: unchanged when they fit, else
+    the intrinsics scaled (pixel-centre convention), the image area-averaged and the depth map sampled at
+    the nearest pixel (averaging would blend missing pixels, 0, into their neighbours' depth)."""
+    import cv2
+
+    w, h = drawing_size(camera, max_side)
+    if (w, h) == (camera.width, camera.height):
+        return camera, rgb, depth_m
+    if rgb is not None:
+        _check_image("the RGB image", rgb, camera)
+        rgb = cv2.resize(np.asarray(rgb, dtype=np.uint8), (w, h), interpolation=cv2.INTER_AREA)
+    if depth_m is not None:
+        _check_image("the depth map", depth_m, camera)
+        depth_m = np.asarray(depth_m, dtype=np.float32)
+        depth_m = cv2.resize(depth_m, (w, h), interpolation=cv2.INTER_NEAREST_EXACT)
+    return camera.scaled(w / camera.width, h / camera.height), rgb, depth_m
+
+
 def render_images(
-    camera: Camera, cuboids: list[Cuboid], rgb: np.ndarray | None = None, depth_m: np.ndarray | None = None
+    camera: Camera,
+    cuboids: list[Cuboid],
+    rgb: np.ndarray | None = None,
+    depth_m: np.ndarray | None = None,
+    max_side: int | None = None,
 ) -> dict[str, np.ndarray]:
     """All image outputs in memory: ``overlay``, ``labels`` (raw, 0 = background), ``labels_color``,
     ``panel``.
 
-    The panel is image | depth | cuboids | labels, leaving out the inputs that are not given.
+    The panel is image | depth | cuboids | labels, leaving out the inputs that are not given. With
+    ``max_side`` a frame larger than that on its longer side is drawn at :func:`drawing_size` (every
+    image but the panel then has that size; the labels are those of its pixels), and the panel's tiles are
+    at most half that on their longer side, as the panel is up to four of them wide; None: all at the
+    camera's size.
     """
+    camera, rgb, depth_m = shrink_inputs(camera, rgb, depth_m, max_side)
     cast = raycast(camera, cuboids)
     background = background_image(camera, rgb, depth_m)
     overlay = draw_overlay(background, camera, cuboids, cast)
     labels_color = colorize_labels(cast.label)
+    tile_size = drawing_size(camera, None if max_side is None else max(1, max_side // 2))
     tiles = []
     if rgb is not None:
-        tiles.append(("image", background))
+        tiles.append(("image", _tile(background, tile_size)))
     if depth_m is not None:
-        tiles.append(("depth", colorize_depth(depth_m)))
-    tiles += [(f"cuboids ({len(cuboids)})", overlay), ("labels", labels_color)]
+        # the depth's own colours at the tile's pixels: averaging would blend holes into them
+        tiles.append(("depth", colorize_depth(_tile(depth_m, tile_size, nearest=True))))
+    tiles += [
+        (f"cuboids ({len(cuboids)})", _tile(overlay, tile_size)),
+        ("labels", _tile(labels_color, tile_size, nearest=True)),
+    ]
     return {
         "overlay": overlay,
         "labels": label_image(cast),
         "labels_color": labels_color,
         "panel": make_panel(tiles),
     }
+
+
+def _tile(image: np.ndarray, size: tuple[int, int], nearest: bool = False) -> np.ndarray:
+    """``image`` at ``size`` (width, height): area-averaged, or the nearest pixel for images whose values
+    are codes (labels, depths) that must not be mixed."""
+    import cv2
+
+    if image.shape[1::-1] == size:
+        return image
+    return cv2.resize(image, size, interpolation=cv2.INTER_NEAREST_EXACT if nearest else cv2.INTER_AREA)
 
 
 def write_png(path: str | os.PathLike, image: np.ndarray) -> Path:

@@ -115,11 +115,26 @@ def frame_images(
     depth_m: np.ndarray | None = None,
 ) -> dict[str, Path]:
     """The overlay, the label image (0 background, k + 1 cuboid k), its colours and the panel, to the
-    paths of their keys."""
-    from cuboidcli.export.overlay import render_images, write_png
+    paths of their keys, drawn at most :data:`~cuboidcli.export.overlay.MAX_IMAGE_SIDE` pixels on the
+    longer side; the size they were drawn at is recorded in the result (:func:`record_image_size`)."""
+    from cuboidcli.export.overlay import MAX_IMAGE_SIDE, render_images, write_png
 
-    images = render_images(result.camera, result.cuboids, rgb=rgb, depth_m=depth_m)
-    return {key: write_png(path, images[key]) for key, path in paths.items()}
+    images = render_images(result.camera, result.cuboids, rgb=rgb, depth_m=depth_m, max_side=MAX_IMAGE_SIDE)
+    record_image_size(result, images["overlay"])
+    written = {}
+    for key, path in paths.items():
+        written[key] = write_png(path, images.pop(key))  # each image freed once written
+    return written
+
+
+def record_image_size(result: FitResult, image: np.ndarray) -> None:
+    """Note in the result (its ``overlay`` entry, written with its JSON) the size (width, height) its image
+    outputs were drawn at and ``scale``, that width over the camera's. A large frame's are smaller than
+    its camera's image W x H: their pixel (u, v) is the camera's ((u + 0.5) * W / width - 0.5,
+    (v + 0.5) * H / height - 0.5)."""
+    h, w = image.shape[:2]
+    scale = w / result.camera.width if result.camera is not None and result.camera.width else 1.0
+    result.extras["overlay"] = {"width": int(w), "height": int(h), "scale": round(float(scale), 6)}
 
 
 def camera_cuboids(cuboids: list[Cuboid], world_from_camera: np.ndarray) -> list[Cuboid]:
@@ -218,7 +233,7 @@ def overlay(context: Context, paths: dict[str, Path]) -> dict[str, Path]:
     r = context.result
     if not context.room:
         return frame_images(r.record, paths, rgb=r.rgb, depth_m=r.depth_m)
-    from cuboidcli.export.overlay import render_images, write_png
+    from cuboidcli.export.overlay import MAX_IMAGE_SIDE, render_images, write_png
     from cuboidcli.io.depth import InputError, read_depth, read_rgb
 
     written = {}
@@ -236,6 +251,7 @@ def overlay(context: Context, paths: dict[str, Path]) -> dict[str, Path]:
 
             rgb = cv2.resize(rgb, (depth.shape[1], depth.shape[0]), interpolation=cv2.INTER_AREA)
         boxes = camera_cuboids(r.record.cuboids, view.world_from_camera)
-        images = render_images(r.record.camera, boxes, rgb=rgb, depth_m=depth)
+        images = render_images(r.record.camera, boxes, rgb=rgb, depth_m=depth, max_side=MAX_IMAGE_SIDE)
         written[key] = write_png(paths[key], images["overlay"])
+        record_image_size(r.record, images["overlay"])
     return written

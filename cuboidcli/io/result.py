@@ -232,10 +232,11 @@ def check_result_json(d) -> None:
 
 
 #: The top-level keys of a "cuboids/1" result: the schema's, and those the tool's fits and synthetic
-#: ground truth add (a frame's gravity, a room's up, objects and frames).
+#: ground truth add (a frame's gravity, a room's up, objects and frames, the size its images were drawn at).
 RESULT_KEYS = (
     *("schema", "version", "camera", "frame", "cuboids", "settings", "timing_s", "input"),
     *("fit_info", "gravity", "world_from_camera", "up", "world_from_input", "objects", "frames", "room"),
+    "overlay",
 )
 #: The keys of a cuboid of a result: the schema's, a room's frames and objects', synthetic ground truth's.
 CUBOID_KEYS = (
