@@ -11,8 +11,9 @@ from cuboidcli.camera import Camera
 
 #: Points nearer than this (m) to a camera are not drawn: a splat that close would cover the image.
 NEAR_M = 0.15
-#: The largest splat radius in pixels at 640 pixels of width (scaled with the image).
-MAX_SPLAT_PX = 24
+#: The largest splat radius in pixels at 640 pixels of width (scaled with the image): the cameras keep
+#: 0.6 m from walls, where a 4 cm disc (a sparse part of a scan) is 35 pixels; a lower cap leaves gaps.
+MAX_SPLAT_PX = 40
 #: Gaps between discs a farther surface shows through are looked for this far (pixels at 320 wide).
 GAP_PX = 4
 #: Passes of the hole filling: each closes gaps about one pixel deeper from their rim.
