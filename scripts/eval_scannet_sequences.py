@@ -21,9 +21,6 @@ import tempfile
 import time
 from pathlib import Path
 
-# The same table as the scan evaluation's (a script's own folder is on its import path).
-from eval_scannet import COLUMNS, table_line
-
 from cuboidcli.evaluation.scannet import (
     class_recall,
     pool_rows,
@@ -32,6 +29,8 @@ from cuboidcli.evaluation.scannet import (
     scan_metrics,
     scan_names,
 )
+from cuboidcli.evaluation.scannet_report import markdown_header
+from cuboidcli.evaluation.scannet_report import markdown_line as table_line
 from cuboidcli.evaluation.scannet_views import VIEWS, render_scan, scan_colors
 from cuboidcli.evaluation.scene_run import json_safe
 
@@ -88,8 +87,9 @@ def main() -> None:
     import cuboidcli
 
     fitter = cuboidcli.Fitter(seed=args.seed)
-    print("| " + " | ".join(h for _, h, _ in COLUMNS) + " | seen pts % | seen boxes | render s |")
-    print("|" + "---|" * (len(COLUMNS) + 3), flush=True)
+    header, rule = markdown_header()  # the scan evaluation's table, with what the views saw added
+    print(header + " seen pts % | seen boxes | render s |")
+    print(rule + "---|" * 3, flush=True)
     rows = []
     with tempfile.TemporaryDirectory(prefix="cuboids-scannet-views-") as tmp:
         base = args.keep if args.keep is not None else Path(tmp)
