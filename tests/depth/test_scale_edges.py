@@ -128,11 +128,20 @@ def test_floor_scale_is_exact_in_any_units_and_not_fooled_by_a_bed(units):
 
 
 def test_a_sliver_of_floor_is_not_a_large_plane():
-    # pitched down only 15 degrees the bed hides the floor but for a few grid cells (< 3 % of the view):
-    # the bed's top is the lowest large plane, 0.95 m below the camera
-    depth = render(1.4, 15.0, BED)
+    # pitched down 23 degrees the bed hides the floor but for ~300 grid cells (under 3 % of the view's
+    # ~19000): the bed's top is the lowest large plane, 0.95 m below the camera
+    depth = render(1.4, 23.0, BED)
     fs = scale_from_camera_height(depth, CAMERA, 1.4)
     assert fs.floor_distance == pytest.approx(0.95, rel=1e-4)
+
+
+@pytest.mark.parametrize("top", [0.05, 0.06, 0.1, 0.15])
+def test_a_low_dais_next_to_the_floor_is_not_averaged_into_it(top):
+    # a 3 x 1.8 m dais a few cm high shows more horizontal cells (~9000) than the floor around it (~4000)
+    # and lies within a few height slices of it: only the floor's own slices give its height
+    fs = scale_from_camera_height(render(1.4, 30.0, (top, 1.5, 2.2, 0.9)), CAMERA, 1.4)
+    assert fs.floor_distance == pytest.approx(1.4, rel=1e-4)
+    assert 3000 < fs.floor_cells < 5000
 
 
 def test_unknown_depth_stays_unknown_with_the_camera_height():
