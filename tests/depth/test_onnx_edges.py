@@ -128,3 +128,13 @@ def test_size_options_bounds(tmp_path):
             OnnxDepthEstimator(dynamic, **bad)
     with pytest.raises(ValueError, match="three numbers"):
         OnnxDepthEstimator(dynamic, mean=(0.5, float("nan"), 0.5))
+
+
+def test_a_partly_dynamic_input_is_fed_at_the_image_size(tmp_path):
+    # fixed height 4, dynamic width: not a fixed-size model, so the image goes in at its own size
+    model = red_model(tmp_path / "partly.onnx", (1, 1, 4, 0), in_shape=(1, 3, 4, "w"))
+    est = OnnxDepthEstimator(model, mean=(0, 0, 0), std=(1, 1, 1))
+    assert est.fixed_hw is None
+    rgb = np.full((4, 7, 3), 51, np.uint8)
+    raw = est.raw_output(rgb, Camera(fx=5.0, fy=5.0, cx=3.0, cy=1.5, width=7, height=4))
+    np.testing.assert_allclose(raw, np.full((4, 7), 3.2), rtol=1e-6)  # 51 / 255 + 3
