@@ -55,21 +55,27 @@ def rgb():
     return img
 
 
-@pytest.mark.parametrize("shape", [(1, 4, 6), (1, 4, 6, 1), (4, 6), (1, 1, 4, 6)])
-def test_every_accepted_output_layout_gives_the_same_map(tmp_path, rgb, shape):
-    ref = OnnxDepthEstimator(red_model(tmp_path / "ref.onnx", (1, 1, 4, 6)), mean=(0, 0, 0), std=(1, 1, 1))
+@pytest.mark.parametrize(
+    "shape, plain",
+    [((1, 4, 6), (1, 1, 4, 6)), ((1, 4, 6, 1), (1, 1, 4, 6)), ((4, 6), (1, 1, 4, 6)), ((1, 1, 4, 6), (4, 6))]
+    + [((1, 2, 12, 1), (2, 12))],  # two rows, channels last
+)
+def test_every_accepted_output_layout_gives_the_same_map(tmp_path, rgb, shape, plain):
+    ref = OnnxDepthEstimator(red_model(tmp_path / "ref.onnx", plain), mean=(0, 0, 0), std=(1, 1, 1))
     est = OnnxDepthEstimator(red_model(tmp_path / "m.onnx", shape), mean=(0, 0, 0), std=(1, 1, 1))
     expected = ref.raw_output(rgb, CAMERA)
     assert expected.shape == (H, W) and expected.min() > 3.0 and np.ptp(expected) > 0.5
     np.testing.assert_array_equal(est.raw_output(rgb, CAMERA), expected)
 
 
-def test_a_one_row_output_is_stretched_over_the_image(tmp_path, rgb):
-    # (1, 1, 1, 24): a map one row high; the leading ones go, the row stays
-    est = OnnxDepthEstimator(red_model(tmp_path / "row.onnx", (1, 1, 1, 24)), mean=(0, 0, 0), std=(1, 1, 1))
-    raw = est.raw_output(rgb, CAMERA)
-    assert raw.shape == (H, W)
-    np.testing.assert_allclose(raw, np.broadcast_to(raw[:1], (H, W)))  # the same in every row
+@pytest.mark.parametrize("shape, axis", [((1, 1, 1, 24), 0), ((1, 24, 1, 1), 1)])
+def test_a_one_row_or_one_column_output_is_stretched_over_the_image(tmp_path, rgb, shape, axis):
+    # (1, 1, 1, w): a map one row high, (1, h, 1, 1): one column wide; only the leading ones go
+    model = red_model(tmp_path / "line.onnx", shape)
+    raw = OnnxDepthEstimator(model, mean=(0, 0, 0), std=(1, 1, 1)).raw_output(rgb, CAMERA)
+    assert raw.shape == (H, W) and np.ptp(raw) > 0.1
+    line = raw[:1] if axis == 0 else raw[:, :1]
+    np.testing.assert_allclose(raw, np.broadcast_to(line, (H, W)))  # the same in every row / column
 
 
 DYNAMIC_BATCH = ("n", 3, 4, 6)
@@ -99,6 +105,8 @@ def test_output_shapes_that_are_depth_maps_load(tmp_path, in_shape, out_shape):
         ((1, 3, 4, 6), (2, 1, 2, 6)),
         ((1, 3, 4, 6), (1, 2, 2, 6)),  # 2 channels
         ((1, 3, 4, 6), (1, 4, 3, 2)),  # channels last, 2 of them
+        ((1, 3, 4, 6), (1, 2, 3, 2)),
+        ((1, 3, 4, 6), (1, 2, 1, 12)),  # 2 channels of one row
         ((1, 3, 0, 6), (1, 1, 0, 6)),  # empty
     ],
 )
