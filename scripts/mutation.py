@@ -99,6 +99,9 @@ TARGETS = (
             f"cuboidcli/depth/{name}.py",
             None,
             (
+                "tests/depth/test_scale_edges.py",
+                "tests/depth/test_onnx_edges.py",
+                "tests/depth/test_hf_edges.py",
                 "tests/depth/test_hostile_models.py",
                 "tests/depth/test_onnx_presets.py",
                 "tests/depth/test_hf_depth.py",
