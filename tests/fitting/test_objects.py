@@ -116,7 +116,7 @@ def test_two_tables_a_hand_apart_are_two_objects(monkeypatch):
 
 def test_scores_rank_a_standing_table_above_a_floating_scrap():
     pts, labels, cuboids = _room()
-    scrap = _grid((3.0, 3.0, 1.1), (3.3, 3.15, 1.1))  # a loose patch of points in the air
+    scrap = _grid((3.0, 3.0, 1.5), (3.3, 3.15, 1.5))  # a loose patch of points in the air
     pts = np.concatenate([pts, scrap])
     labels = np.concatenate([labels, np.full(len(scrap), -1, dtype=np.int32)])
     objects = group_objects(pts, labels, cuboids, np.array([0.0, 0.0, 1.0]), VOXEL)
@@ -146,16 +146,6 @@ def test_each_point_stands_on_the_floor_under_it():
     level = np.array([[1.0, 1.0, 0.5], [4.0, 1.0, 0.5], [7.0, 1.0, 0.5]])
     under = floor_heights(level, [low, high], np.eye(3))
     assert np.allclose(under, [0.0, 0.3, 0.3])
-
-
-def test_a_flat_patch_on_the_floor_is_the_floors():
-    """A 10 cm high patch on the floor (a rug, a bend of the floor) is no object; a 40 cm bag is."""
-    pts, labels, cuboids = _room()
-    rug = _grid((2.5, 2.5, 0.06), (3.2, 3.0, 0.1))
-    pts = np.concatenate([pts, rug])
-    labels = np.concatenate([labels, np.full(len(rug), -1, dtype=np.int32)])
-    objects = group_objects(pts, labels, cuboids, np.array([0.0, 0.0, 1.0]), VOXEL)
-    assert len(objects) == 3 and all(o.box.center[0] < 2.45 or o.cuboids for o in objects)
 
 
 def test_a_box_against_a_wall_with_the_walls_colour_is_the_walls():
