@@ -28,7 +28,7 @@ from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.fit_input import FitInput
 from cuboidcli.fitting.objects import SceneObject, group_objects
 from cuboidcli.fitting.prepare import frame_input, grid_assignment
-from cuboidcli.fitting.room import low_walls_are_furniture, room_input, room_theta
+from cuboidcli.fitting.room import low_walls_are_furniture, room_input
 from cuboidcli.fitting.search import gain_upper_bound, search_step
 from cuboidcli.fitting.shell import cuboid_kind
 from cuboidcli.fitting.winner import refine_winner
@@ -50,7 +50,7 @@ class FitInfo:
     """Inlier-count gain of each selected cuboid, in selection order."""
     theta: float = 0.0
     """Stopping threshold used: ``theta`` if given, else k ln n with k = ``theta_log_factor`` (6 by default;
-    the paper's 9); a room raises it for its later cuboids (:func:`~cuboidcli.fitting.room.room_theta`)."""
+    the paper's 9)."""
     n_points: int = 0
     """Valid fitting points n."""
     iterations: int = 0
@@ -173,7 +173,6 @@ def fit_points(
             info.stop_reason = "max_cuboids"
             break
         info.iterations += 1
-        theta = room_theta(n, config, len(cuboids)) if prep.kind == "room" else info.theta
         sampling = SamplingContext(
             pts,
             None if grid is None else grid.index,
@@ -184,17 +183,17 @@ def fit_points(
             None if grid is None else grid.focal_cells,
             prep.space,
         )
-        if not gain_upper_bound(state) > theta:  # no hypothesis can gain Theta: stop without drawing
+        if not gain_upper_bound(state) > info.theta:  # no hypothesis can gain Theta: stop without drawing
             info.stop_reason = "gain_below_theta"
             info.rejected_gain = None
             info.batches.append(0)
             break
         gain, best, batches = search_step(
-            sampling, sampler, solver, state, sp, config, gen, theta, timing, alignment, backend
+            sampling, sampler, solver, state, sp, config, gen, info.theta, timing, alignment, backend
         )
         info.batches.append(batches)
         t4 = time.perf_counter()
-        if not gain > theta:
+        if not gain > info.theta:
             info.stop_reason = "gain_below_theta"
             info.rejected_gain = gain
             break

@@ -35,24 +35,6 @@ from cuboidcli.sampling import SpaceCells
 #: is furniture, not a wall (m). On the synthetic room scans it turns the backs of sofas, the sides of beds
 #: and shelves into objects: shell precision 57 -> 70 % (sequences), 64 -> 80 % (bare clouds), recall equal.
 WALL_TOP_GAP_M = 0.5
-#: From this many cuboids on, a room's next cuboid must gain at least :data:`ROOM_GAIN_SHARE` of its
-#: fitting points. k ln n grows so slowly that a large, cluttered real room keeps adding scraps (a cushion,
-#: a corner of a cabinet, a patch of bent wall) worth 2-3 per mille of its points until the cuboid cap ends
-#: the fit: 4 of the 10 ScanNet scans did. A share of the points scales with the room's scanned surface.
-#: From the first cuboid on it stopped those scans too, but also cut the synthetic rooms (15.0 instead of
-#: 20.7 cuboids, object boxes at IoU 0.25 71.0 -> 67.7 %), whose fits end by k ln n within 17-24 cuboids.
-ROOM_FREE_CUBOIDS = 30
-ROOM_GAIN_SHARE = 0.003
-
-
-def room_theta(n_points: int, config: FitConfig, selected: int) -> float:
-    """A room's stopping threshold for its next cuboid, ``selected`` cuboids in: ``config``'s Theta (k ln
-    n, ``n_points`` fitting points), from :data:`ROOM_FREE_CUBOIDS` on raised to :data:`ROOM_GAIN_SHARE` of
-    the points. A Theta given in ``config`` is used as it is."""
-    theta = config.theta_for(n_points)
-    if config.theta is not None or selected < ROOM_FREE_CUBOIDS:
-        return theta
-    return max(theta, ROOM_GAIN_SHARE * n_points)
 
 
 def fitting_voxels(

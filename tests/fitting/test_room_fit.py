@@ -245,16 +245,3 @@ def test_a_low_upright_slab_is_furniture_not_a_wall():
     turned = Cuboid([0.45, 1.5, 3.5], [0.45, 1.2, 0.005], np.eye(3), kind="wall")  # up is +x here
     low_walls_are_furniture([turned], points[:, ::-1], np.array([1.0, 0.0, 0.0]))
     assert turned.kind == "object"
-
-
-def test_a_large_room_stops_at_a_share_of_its_points():
-    """Theta k ln n for the first cuboids and for a small room; later a share of the fitting points; a
-    given Theta as is."""
-    from cuboidcli.fitting.room import ROOM_FREE_CUBOIDS, ROOM_GAIN_SHARE, room_theta
-
-    config = FitConfig()
-    late = ROOM_FREE_CUBOIDS
-    assert room_theta(40000, config, late - 1) == config.theta_for(40000)
-    assert room_theta(2000, config, late) == config.theta_for(2000)
-    assert room_theta(40000, config, late) == ROOM_GAIN_SHARE * 40000 > config.theta_for(40000)
-    assert room_theta(40000, FitConfig(theta=50.0), late) == 50.0
