@@ -69,6 +69,9 @@ class RoomFitting:
     """(M,) the voxel of each fitting point (the points are sorted into scoring blocks)."""
     inverse: np.ndarray
     """(N,) the voxel of each input point."""
+    colors: np.ndarray | None = None
+    """(M,) x 3 float64 the mean colour (0-255) of each fitting point's input points, in scoring order; None
+    when the input has no colours."""
 
 
 @dataclass

@@ -263,7 +263,7 @@ def estimate(
         in_order[room.order] = labels
         info.point_labels = in_order[room.inverse]
         t = time.perf_counter()
-        info.objects = group_objects(points, labels, cuboids, room.up.up, room.voxel_m)
+        info.objects = group_objects(points, labels, cuboids, room.up.up, room.voxel_m, room.colors)
         timing["objects"] = time.perf_counter() - t
         info.fit_points, info.room_up, info.voxel_m = points, room.up, room.voxel_m
         info.visibility, info.viewpoint = room.visibility, inp.viewpoint

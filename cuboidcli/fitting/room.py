@@ -56,6 +56,7 @@ def room_input(
     config: FitConfig,
     viewpoints: np.ndarray | None = None,
     up_hint: np.ndarray | None = None,
+    colors: np.ndarray | None = None,
 ) -> FitInput:
     """A room given as points (N, 3), metres, in its own world frame, as the estimator's input: voxel means
     (``config.voxel_m``, grown until at most ``config.fit_points`` remain), the room's up direction and
@@ -63,7 +64,9 @@ def room_input(
     default +z), and the scoring backend of its visibility.
 
     ``viewpoints`` (N, 3): a camera centre that observed each point (a fused sequence), or None (a bare
-    cloud, seen from virtual viewpoints just outside its surfaces). Deterministic for ``config.seed``."""
+    cloud, seen from virtual viewpoints just outside its surfaces); ``colors`` (N, 3) 0-255 or None: the
+    fitting points keep their voxels' mean colour (the objects step reads it). Deterministic for
+    ``config.seed``."""
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
@@ -98,6 +101,11 @@ def room_input(
         else:
             views = free_side_viewpoints(means, normals, viewpoint, config.virtual_view_m, 3.0 * voxel)
     room = RoomPoints.build(means, views, visibility)
+    voxel_colors = None
+    if colors is not None and len(colors) == len(points):
+        voxel_colors = np.zeros((len(means), 3))
+        np.add.at(voxel_colors, inverse, np.asarray(colors, dtype=np.float64).reshape(-1, 3))
+        voxel_colors = (voxel_colors / np.bincount(inverse, minlength=len(means))[:, None])[room.order]
     timing["prepare"] += time.perf_counter() - t
     return FitInput(
         "room",
@@ -108,7 +116,7 @@ def room_input(
         alignment=alignment,
         down=-up.up,
         viewpoint=viewpoint,
-        room=RoomFitting(voxel, visibility, up, room.order, inverse),
+        room=RoomFitting(voxel, visibility, up, room.order, inverse, voxel_colors),
         warnings=[up.warning] if up.warning else [],
         timing_s=timing,
         started=t0,

@@ -159,7 +159,7 @@ class Input:
         from cuboidcli.fitting.room import room_input
 
         cloud = self.room.cloud
-        return room_input(cloud.points, config, cloud.viewpoints, self.room.up_hint)
+        return room_input(cloud.points, config, cloud.viewpoints, self.room.up_hint, cloud.colors)
 
 
 def source_of(x, camera: Camera | None = None) -> str:

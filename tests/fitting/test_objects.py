@@ -146,3 +146,18 @@ def test_each_point_stands_on_the_floor_under_it():
     level = np.array([[1.0, 1.0, 0.5], [4.0, 1.0, 0.5], [7.0, 1.0, 0.5]])
     under = floor_heights(level, [low, high], np.eye(3))
     assert np.allclose(under, [0.0, 0.3, 0.3])
+
+
+def test_a_box_against_a_wall_with_the_walls_colour_is_the_walls():
+    """A 30 cm deep box flat against the wall (thicker than a socket) is the wall's when its points have
+    the wall's colour, an object when they do not (a cabinet)."""
+    pts, labels, cuboids = _room()
+    bulge = _grid((1.0, 3.78, 0.9), (1.6, 3.95, 1.5))
+    pts = np.concatenate([pts, bulge])
+    labels = np.concatenate([labels, np.full(len(bulge), -1, dtype=np.int32)])
+    colors = np.full((len(pts), 3), 200.0)
+    up = np.array([0.0, 0.0, 1.0])
+    assert len(group_objects(pts, labels, cuboids, up, VOXEL, colors)) == 3
+    colors[-len(bulge) :] = [120.0, 80.0, 40.0]  # a wooden front
+    assert len(group_objects(pts, labels, cuboids, up, VOXEL, colors)) == 4
+    assert len(group_objects(pts, labels, cuboids, up, VOXEL)) == 4  # without colours nothing tells
