@@ -120,7 +120,11 @@ TARGETS = (
             f"cuboidcli/geometry/{name}.py",
             None,
             (
-                *(("tests/geometry/test_down.py",) if name == "down" else ()),
+                *(
+                    ("tests/geometry/test_down.py",)
+                    if name == "down"
+                    else ("tests/geometry/test_vp_edges.py",)
+                ),
                 "tests/geometry/test_vanishing.py",
                 *(() if name == "down" else ("tests/geometry/test_down.py",)),
                 "tests/load/test_photo_lines.py",
