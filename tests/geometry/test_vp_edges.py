@@ -4,6 +4,7 @@ fit (geometry/vanishing.py) and of the segment detector's pixel bookkeeping (geo
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import cv2
@@ -517,3 +518,14 @@ def test_the_hough_fallback_finds_the_same_long_edges():
     length = np.hypot(segs[:, 2] - segs[:, 0], segs[:, 3] - segs[:, 1])
     assert len(segs) >= 2 and length.max() > 300 and length.min() >= 24
     assert lines_mod._hough(np.full((480, 640), 40, np.uint8), 24.0).shape == (0, 4)
+
+
+def test_a_given_fx_or_fy_alone_means_the_focal_length_is_given():
+    from tests.geometry.test_vanishing import render_room
+
+    img, _ = render_room(500.0, -15.0, 0.0, 30.0)
+    for fx, fy in ((500.0, None), (None, 500.0)):
+        est = vanishing.estimate_from_lines(img, fx, fy)
+        assert est.focal_px is None and est.focal_confidence == 0.0 and est.fit.focal_px == 500.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        est.down_confidence = 1.0
