@@ -386,6 +386,13 @@ def test_the_down_confidence_grows_with_support_beyond_chance_and_falls_with_its
     assert both.down_confidence == pytest.approx(0.75 / math.e)
     along = vanishing.line_estimate(_fit(rot, sup, np.diag([0.0, 9 * a, 0.0, 0.0])), 36)
     assert along.down_confidence == pytest.approx(0.75)
+    # the same for a tilted camera: the spread split evenly between the two directions across its up
+    tilted = _axis_rotation(0, 30.0) @ _axis_rotation(2, 20.0)
+    up = -vanishing.line_estimate(_fit(tilted, sup), 36).down
+    spread = np.zeros((4, 4))
+    spread[:3, :3] = a / 2 * (np.eye(3) - np.outer(up, up)) + 5 * a * np.outer(up, up)
+    tilted_est = vanishing.line_estimate(_fit(tilted, sup, spread), 36)
+    assert tilted_est.down_confidence == pytest.approx(0.75 / math.e)
     unknown = vanishing.line_estimate(_fit(rot, sup, np.full((4, 4), np.inf)), 36)
     assert unknown.down_confidence == 0.0
     # one family alone (the others below MIN_SUPPORT) leaves a rotation about it free
@@ -409,6 +416,11 @@ def test_the_focal_confidence_needs_the_two_central_vanishing_points():
     assert f == 500.0 and conf == pytest.approx(0.5 * 0.5 / math.e)
     swapped = support[[2, 1, 0]]
     assert vanishing._focal_confidence(_fit(rot, swapped, cov, margin=0.5 * margin))[1] == pytest.approx(conf)
+    # turning the camera about its optical axis moves no vanishing point nearer the centre
+    turned = _axis_rotation(2, 90.0) @ rot
+    assert vanishing._focal_confidence(_fit(turned, support, cov, margin=0.5 * margin))[1] == pytest.approx(
+        conf
+    )
     far = support.copy()
     far[1] = 0.0  # the far one does not matter
     assert vanishing._focal_confidence(_fit(rot, far, cov, margin=0.5 * margin))[1] == pytest.approx(conf)
@@ -460,6 +472,11 @@ def test_seen_by_another_camera_keeps_the_vanishing_points_in_the_image():
     d = est.to_dict()
     assert d["down"] == [round(float(x), 6) for x in est.down] and d["n_segments"] == 100
     assert d["focal_px"] == 500.0 and d["rms_px"] == 0.5
+    # the vanishing points as unit homogeneous vectors, on the lines through the principal point
+    vps = np.array(d["vanishing_points"])
+    assert np.allclose(np.linalg.norm(vps, axis=1), 1.0, atol=1e-5)
+    for v, col in zip(vps, rot.T, strict=True):
+        assert np.allclose(np.cross(v, k_old @ col), 0.0, atol=1e-3 * np.linalg.norm(k_old @ col))
 
 
 # ---- lines -------------------------------------------------------------------------------------------
