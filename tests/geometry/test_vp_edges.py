@@ -546,3 +546,47 @@ def test_a_given_fx_or_fy_alone_means_the_focal_length_is_given():
         assert est.focal_px is None and est.focal_confidence == 0.0 and est.fit.focal_px == 500.0
     with pytest.raises(dataclasses.FrozenInstanceError):
         est.down_confidence = 1.0
+
+
+def test_without_lsd_the_fast_line_detector_of_a_contrib_build_is_used(monkeypatch):
+    found = np.array([[[10.0, 20.0, 300.0, 40.0]], [[50.0, 400.0, 60.0, 100.0]]], np.float32)
+
+    class Detector:
+        def __init__(self, out):
+            self.out = out
+
+        def detect(self, grey):
+            assert grey.ndim == 2 and grey.dtype == np.uint8
+            return self.out
+
+    class Ximgproc:  # the part of opencv-contrib's cv2.ximgproc that is used
+        out = found
+
+        @classmethod
+        def createFastLineDetector(cls):  # noqa: N802 - OpenCV's name
+            return Detector(cls.out)
+
+    monkeypatch.setattr(lines_mod, "_lsd", lambda grey: None)
+    monkeypatch.setattr(cv2, "ximgproc", Ximgproc, raising=False)
+    segs = lines_mod.detect_segments(np.full((480, 640), 40, np.uint8))
+    assert np.allclose(segs, found.reshape(-1, 4)[[1, 0]])  # longest first (300 and 291 px long)
+    Ximgproc.out = None  # found nothing: no segments, and no Hough fallback
+    assert lines_mod.detect_segments(_drawing()).shape == (0, 4)
+    # a build without the fast line detector: the Hough transform
+    monkeypatch.setattr(cv2, "ximgproc", object(), raising=False)
+    assert len(lines_mod.detect_segments(_drawing())) >= 2
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        np.zeros((48, 64, 4), np.uint8),
+        np.zeros((48, 64), np.float32),
+        np.zeros(64, np.uint8),
+        np.zeros((4, 4, 4, 3)),
+    ],
+    ids=["rgba", "float", "1-d", "4-d"],
+)
+def test_images_that_are_not_uint8_grey_or_rgb_are_refused(bad):
+    with pytest.raises(ValueError):
+        lines_mod.detect_segments(bad)
