@@ -515,6 +515,10 @@ def test_short_and_border_segments_are_dropped_and_the_longest_come_first():
         ((5, 100), (5, 400)),  # left
         ((635, 100), (635, 400)),  # right
         ((320, 3), (320, 150)),  # from the border inwards: kept
+        ((3, 420), (150, 420)),  # from the left border
+        ((636, 60), (480, 60)),  # from the right border
+        ((560, 476), (560, 330)),  # from the bottom border
+        ((330, 15), (600, 15)),  # parallel to the top, but beyond the band (12 px of the short side)
     ]:
         cv2.line(img, p, q, 230, 2, cv2.LINE_AA)
     segs = lines_mod.detect_segments(img)
@@ -523,6 +527,9 @@ def test_short_and_border_segments_are_dropped_and_the_longest_come_first():
     mid = (segs[:, :2] + segs[:, 2:]) / 2
     near = lambda x, y: np.any(np.hypot(mid[:, 0] - x, mid[:, 1] - y) < 6)  # noqa: E731 - a short helper
     assert near(300, 300) and near(220, 200) and near(320, 76)
+    assert near(76, 420) and near(558, 60) and near(560, 403)
+    # both edges of the line 15 px from the top (LSD finds each side of a 2 px line, 1.8 px off)
+    assert np.sum((np.abs(mid[:, 0] - 465) < 5) & (mid[:, 1] > 12) & (mid[:, 1] < 18)) == 2
     assert not near(207, 100)
     for x, y in ((300, 5), (300, 475), (5, 250), (635, 250)):
         assert not near(x, y), (x, y)
