@@ -237,6 +237,13 @@ def test_fewer_than_the_minimum_segments_give_no_fit():
     assert mvp.fit_manhattan(segs[:n], SIZE, fx=500.0) is not None
 
 
+def test_segments_all_on_one_line_give_no_frame():
+    # every triple of segments has parallel interpretation planes: no hypothesis, no fit
+    one_line = np.array([[10.0 + 30 * i, 100.0 + 10 * i, 40.0 + 30 * i, 110.0 + 10 * i] for i in range(15)])
+    assert mvp.fit_manhattan(one_line, SIZE) is None
+    assert mvp.fit_manhattan(one_line, SIZE, fx=500.0) is None
+
+
 def test_a_big_photos_residuals_are_in_pixels_of_the_640_px_copy():
     # the same segments in a 1280 x 960 photo: twice the pixels, the same rms at 640 px
     segs, _ = synth_segments(ROT, 500.0, noise=0.3, seed=4)
@@ -299,6 +306,9 @@ def test_profile_starts_are_the_parabola_minima_of_the_two_best_local_minima():
     assert edge[0][1] == pytest.approx(grid[0]) and len(edge) == 1
     end = mvp._profile_starts(grid, rots, -x)
     assert end[0][1] == pytest.approx(grid[-1]) and len(end) == 1
+    # a minimum next to the grid's last point is moved too
+    near_end = mvp._profile_starts(grid, rots, (x - 0.6) ** 2)
+    assert len(near_end) == 1 and near_end[0][1] == pytest.approx(math.exp(0.6), rel=1e-9)
     flat = mvp._profile_starts(grid[:3], rots[:3], np.array([1.0, 1.0, 1.0]))
     assert [s[1] for s in flat] == pytest.approx([grid[0], grid[1]])
 
