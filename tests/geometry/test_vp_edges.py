@@ -237,6 +237,34 @@ def test_fewer_than_the_minimum_segments_give_no_fit():
     assert mvp.fit_manhattan(segs[:n], SIZE, fx=500.0) is not None
 
 
+def test_the_focal_length_is_searched_within_the_field_of_view_range():
+    # a 20 degree field of view: the narrowest of the range is the nearest the search gets
+    fx = 320.0 / math.tan(math.radians(10.0))
+    fit = mvp.fit_manhattan(synth_segments(ROT, fx, seed=2)[0], SIZE)
+    narrowest = 320.0 / math.tan(math.radians(min(mvp.FOV_RANGE_DEG) / 2))
+    assert fit.focal_px == pytest.approx(narrowest, rel=1e-6)
+
+
+def test_segments_off_every_vanishing_point_are_unlabelled_and_left_out_of_the_rms():
+    segs, fam = synth_segments(ROT, 500.0, per=(15, 15, 15), noise=0.4, seed=6)
+    off = np.array([[100.0, 100.0, 160.0, 300.0], [500.0, 100.0, 380.0, 420.0], [50.0, 400.0, 300.0, 330.0]])
+    fit = mvp.fit_manhattan(np.vstack([segs, off]), SIZE, fx=500.0)
+    assert fit.support.shape == (3,) and np.all(fit.labels[-3:] == -1) and np.all(fit.labels[:-3] >= 0)
+    # the rms of the supporting segments: each endpoint's distance from the line through the segment's
+    # midpoint and its vanishing point, in pixels (the image is 640 px wide: no rescaling)
+    vps = fit.vanishing_points()
+    d = []
+    for seg, lab in zip(segs, fit.labels[:-3], strict=True):
+        v, a, b = vps[lab], seg[:2], seg[2:]
+        m = (a + b) / 2
+        u = v[:2] - v[2] * m  # the direction from the midpoint towards the vanishing point
+        d.append(abs(u[0] * (b - m)[1] - u[1] * (b - m)[0]) / np.linalg.norm(u))
+    assert fit.rms_px == pytest.approx(math.sqrt(np.mean(np.square(d))), rel=1e-6)
+    assert 0.1 < fit.rms_px < 0.6
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        fit.focal_px = 1.0
+
+
 def test_segments_all_on_one_line_give_no_frame():
     # every triple of segments has parallel interpretation planes: no hypothesis, no fit
     one_line = np.array([[10.0 + 30 * i, 100.0 + 10 * i, 40.0 + 30 * i, 110.0 + 10 * i] for i in range(15)])
@@ -259,6 +287,8 @@ def test_a_level_camera_facing_a_wall_leaves_the_focal_length_ambiguous():
     segs, _ = synth_segments(_axis_rotation(1, 0.0), 500.0, per=(20, 20, 20))
     fit = mvp.fit_manhattan(segs, SIZE)
     assert fit.focal_margin < 3.0 and np.all(np.isinf(fit.covariance))
+    # the prior decides: its field of view
+    assert fit.focal_px == pytest.approx(320.0 / math.tan(math.radians(mvp.PRIOR_FOV_DEG / 2)), rel=1e-6)
     assert fit.rms_px < 1e-6 and _same_axes(fit.rotation, np.eye(3))
 
 
@@ -309,6 +339,12 @@ def test_profile_starts_are_the_parabola_minima_of_the_two_best_local_minima():
     # a minimum next to the grid's last point is moved too
     near_end = mvp._profile_starts(grid, rots, (x - 0.6) ** 2)
     assert len(near_end) == 1 and near_end[0][1] == pytest.approx(math.exp(0.6), rel=1e-9)
+    # a shallow parabola high above zero is still a parabola
+    high = mvp._profile_starts(grid, rots, (x - 0.3) ** 2 + 10.0)
+    assert high[0][1] == pytest.approx(math.exp(0.3), rel=1e-9)
+    # local minima are lower than their immediate neighbours only
+    for c in ([3.0, 1.0, 2.0, 0.5, 2.0, 3.0, 4.0, 5.0, 6.0], [2.0, 0.5, 3.0, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0]):
+        assert len(mvp._profile_starts(grid, rots, np.array(c))) == 2
     flat = mvp._profile_starts(grid[:3], rots[:3], np.array([1.0, 1.0, 1.0]))
     assert [s[1] for s in flat] == pytest.approx([grid[0], grid[1]])
 
@@ -322,6 +358,8 @@ def test_distinct_best_frames_differ_by_more_than_five_degrees():
     assert mvp._distinct_best(rots, cost, 3) == [4, 2]  # 0 and 1 as 4; 3 never (infinite cost)
     assert mvp._distinct_best(rots, cost, 1) == [4]
     assert mvp._distinct_best(rots, cost, 3, min_deg=2.0) == [4, 1, 2]
+    four = vm._rotations(np.array([[0.0, 0.0, 0.0], [0.0, 0.0, math.radians(4.0)]]))
+    assert mvp._distinct_best(four, np.array([1.0, 2.0]), 2) == [0]
 
 
 # ---- vanishing ---------------------------------------------------------------------------------------
