@@ -168,11 +168,13 @@ def test_frame_covariance_is_the_residual_variance_through_the_jacobian():
     fixed = vm.frame_covariance(rot[0], phi[0], lines, 1.0, thr, False)
     assert np.all(fixed[3] == 0) and np.all(fixed[:, 3] == 0)
     assert np.allclose(fixed[:3, :3], np.linalg.inv(j[:, :3].T @ j[:, :3]) * np.sum(res**2) / (n - 3))
-    # too few supporting segments (npar + 1 or fewer): unknown
-    few = vm.frame_covariance(rot[0], phi[0], lines.take(slice(0, 5)), 1.0, thr, True)
-    assert np.all(np.isinf(few))
-    six = vm.frame_covariance(rot[0], phi[0], lines.take([0, 1, 2, 15, 16, 30]), 1.0, thr, True)
-    assert np.all(np.isfinite(six))
+    # too few supporting segments (npar + 1 or fewer): unknown; one more: known
+    support = np.array(sorted(np.flatnonzero(sel), key=lambda i: (i % 15, i // 15)))  # the columns in turn
+    for npar, free in ((4, True), (3, False)):
+        few = vm.frame_covariance(rot[0], phi[0], lines.take(support[: npar + 1]), 1.0, thr, free)
+        assert np.all(np.isinf(few))
+        enough = vm.frame_covariance(rot[0], phi[0], lines.take(support[: npar + 2]), 1.0, thr, free)
+        assert np.all(np.isfinite(enough))
 
 
 # ---- manhattan_vp ------------------------------------------------------------------------------------
