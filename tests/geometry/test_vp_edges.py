@@ -85,6 +85,11 @@ def test_residual_is_the_endpoint_distance_from_the_line_to_the_vanishing_point(
     # a longer segment (half length 3) at the same angle: three times the residual
     s3 = vm.Segments(np.array([[-3.0, 0.0, 3.0, 0.0]]), 0.0, 0.0, 1.0)
     assert abs(vm.residuals(vps[None, 2:], s3)[0, 2, 0]) == pytest.approx(1.5)
+    # a segment away from the origin: from (1, 1) to (3, 1), the vanishing point straight above its
+    # midpoint (2, 1), or 45 degrees off it, or at infinity along 45 degrees
+    off = vm.Segments(np.array([[1.0, 1.0, 3.0, 1.0]]), 0.0, 0.0, 1.0)
+    far = np.array([[2.0, 4.0, 1.0], [5.0, 4.0, 1.0], [-1.0, 1.0, 0.0]])
+    assert np.allclose(np.abs(vm.residuals(far[None], off)[0, :, 0]), [1.0, math.sqrt(0.5), math.sqrt(0.5)])
     own = vm._own_residuals(vps[None, 2:], np.array([[1]]), s)
     assert own[0, 0] == pytest.approx(vm.residuals(vps[None, 2:], s)[0, 1, 0])
 
@@ -148,6 +153,25 @@ def test_refinement_recovers_the_rotation_and_the_focal_length():
     mixed = vm.Segments(np.vstack([segs, outliers]), CX, CY, 640.0)
     rot, phi = vm.refine_frames(start, [500.0 / 640 * 1.06], mixed, 1.0, thr, True, (0.3, 3.0))
     assert np.allclose(rot[0], ROT, atol=1e-5) and phi[0] * 640 == pytest.approx(500.0, rel=1e-5)
+
+
+def test_segments_beyond_three_thresholds_do_not_pull_the_frame():
+    segs, _ = synth_segments(ROT, 500.0, per=(15, 15, 15), seed=7)
+    thr = 1.5 / 640
+    # six segments bent by 3.5 thresholds: each end moved 5.25 px across, in opposite directions
+    bent = segs[::8][:6].copy()
+    d = bent[:, 2:] - bent[:, :2]
+    n = np.c_[-d[:, 1], d[:, 0]] / np.linalg.norm(d, axis=1, keepdims=True) * 3.5 * 1.5
+    bent[:, :2] -= n
+    bent[:, 2:] += n
+    vps = vm.vanishing_points(ROT, 500.0 / 640, 1.0)
+    r = np.abs(vm.residuals(vps, vm.Segments(bent, CX, CY, 640.0))).min(axis=0)
+    bent = bent[np.isclose(r, 3.5 * thr, rtol=1e-6)]  # not nearer another vanishing point
+    assert len(bent) >= 4
+    lines = vm.Segments(np.vstack([segs, bent]), CX, CY, 640.0)
+    start = vm._rotations(np.array([[0.004, -0.003, 0.002]])) @ ROT
+    rot, phi = vm.refine_frames(start, [500.0 / 640 * 1.03], lines, 1.0, thr, True, (0.3, 3.0))
+    assert np.allclose(rot[0], ROT, atol=1e-8) and phi[0] * 640 == pytest.approx(500.0, rel=1e-8)
 
 
 def test_frame_covariance_is_the_residual_variance_through_the_jacobian():
