@@ -671,3 +671,19 @@ def test_without_lsd_the_fast_line_detector_of_a_contrib_build_is_used(monkeypat
 def test_images_that_are_not_uint8_grey_or_rgb_are_refused(bad):
     with pytest.raises(ValueError):
         lines_mod.detect_segments(bad)
+
+
+def test_the_record_keeps_micro_radians_of_directions_and_four_digits_of_confidences():
+    rot = _axis_rotation(0, -15.123456789) @ _axis_rotation(1, 20.987654321)
+    fit = dataclasses.replace(_fit(rot, [0.31234567, 0.28765432, 0.2123456]), rms_px=0.123456789)
+    est = dataclasses.replace(
+        vanishing.line_estimate(fit, 100), focal_px=512.3456789, focal_confidence=0.87654321
+    )
+    d = est.to_dict()
+    assert d["down"] == [round(float(x), 6) for x in est.down] and d["down"] != [float(x) for x in est.down]
+    assert d["down_confidence"] == round(est.down_confidence, 4)
+    assert d["focal_px"] == 512.35 and d["focal_confidence"] == 0.8765 and d["rms_px"] == 0.123
+    assert d["manhattan_frame"] == [[round(float(x), 6) for x in row] for row in est.axes]
+    assert d["support"] == [round(s, 4) for s in est.support] and d["support"][0] == 0.2877
+    vps = fit.vanishing_points()
+    assert d["vanishing_points"] == [[round(float(x), 6) for x in v / np.linalg.norm(v)] for v in vps]
