@@ -687,3 +687,11 @@ def test_the_record_keeps_micro_radians_of_directions_and_four_digits_of_confide
     assert d["support"] == [round(s, 4) for s in est.support] and d["support"][0] == 0.2877
     vps = fit.vanishing_points()
     assert d["vanishing_points"] == [[round(float(x), 6) for x in v / np.linalg.norm(v)] for v in vps]
+
+
+def test_a_sliver_of_an_image_has_no_segments():
+    # 3 rows of 5000 columns: shrunk 8 times, nothing is left of it
+    sliver = np.zeros((3, 5000), np.uint8)
+    sliver[:, 2000:] = 255
+    segs = lines_mod.detect_segments(sliver)
+    assert segs.shape == (0, 4) and segs.dtype == np.float64
