@@ -148,6 +148,8 @@ def test_refinement_recovers_the_rotation_and_the_focal_length():
     # the focal length is kept within its range
     _, phi = vm.refine_frames(ROT[None], [0.7], lines, 1.0, thr, True, (0.6, 0.72))
     assert 0.6 <= phi[0] <= 0.72 and phi[0] == pytest.approx(0.72)
+    _, phi = vm.refine_frames(ROT[None], [0.85], lines, 1.0, thr, True, (0.8, 3.0))  # true 0.78: below
+    assert phi[0] == pytest.approx(0.8)
     # segments far beyond 3 thresholds from their vanishing point are left out
     outliers = np.array([[100.0, 100.0, 300.0, 110.0], [500.0, 400.0, 520.0, 250.0]] * 10)
     mixed = vm.Segments(np.vstack([segs, outliers]), CX, CY, 640.0)
