@@ -679,11 +679,14 @@ def test_the_record_keeps_micro_radians_of_directions_and_four_digits_of_confide
     rot = _axis_rotation(0, -15.123456789) @ _axis_rotation(1, 20.987654321)
     fit = dataclasses.replace(_fit(rot, [0.31234567, 0.28765432, 0.2123456]), rms_px=0.123456789)
     est = dataclasses.replace(
-        vanishing.line_estimate(fit, 100), focal_px=512.3456789, focal_confidence=0.87654321
+        vanishing.line_estimate(fit, 100),
+        focal_px=512.3456789,
+        focal_confidence=0.87654321,
+        down_confidence=0.45678912,
     )
     d = est.to_dict()
     assert d["down"] == [round(float(x), 6) for x in est.down] and d["down"] != [float(x) for x in est.down]
-    assert d["down_confidence"] == round(est.down_confidence, 4)
+    assert d["down_confidence"] == 0.4568
     assert d["focal_px"] == 512.35 and d["focal_confidence"] == 0.8765 and d["rms_px"] == 0.123
     assert d["manhattan_frame"] == [[round(float(x), 6) for x in row] for row in est.axes]
     assert d["support"] == [round(s, 4) for s in est.support] and d["support"][0] == 0.2877
