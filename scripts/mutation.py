@@ -111,6 +111,35 @@ TARGETS = (
         )
         for name in ("onnx", "hf", "scale")
     ),
+    # the camera and the down direction from a photo's own lines: segments, vanishing points (the
+    # Manhattan frame and the focal search), their confidences, and the choice between the lines' down
+    # direction and the depth's. test_photo_lines (the same estimate through load_frame, 2-3 s a mutant)
+    # only for down.py, whose rule it applies; its plain-wall test is left out (30 s of fallbacks)
+    *(
+        Target(
+            name,
+            f"cuboidcli/geometry/{name}.py",
+            None,
+            (
+                *(
+                    ("tests/geometry/test_down.py",)
+                    if name == "down"
+                    else ("tests/geometry/test_vp_edges.py",)
+                ),
+                "tests/geometry/test_vanishing.py",
+                *(
+                    (
+                        "tests/load/test_photo_lines.py",
+                        "--deselect",
+                        "tests/load/test_photo_lines.py::test_a_photo_of_a_plain_wall_falls_back_with_one_warning",
+                    )
+                    if name == "down"
+                    else ("tests/geometry/test_down.py",)
+                ),
+            ),
+        )
+        for name in ("lines", "vp_model", "manhattan_vp", "vanishing", "down")
+    ),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.

@@ -3,13 +3,14 @@ a depth map's own estimate is kept unless unsure, agreement is named, and neithe
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
-from cuboidcli.geometry.down import AGREE_DEG, DEPTH_SURE, LINES_SURE, combine_down
+from cuboidcli.geometry.down import AGREE_DEG, DEPTH_SURE, LINES_SURE, angle_deg, combine_down
 from cuboidcli.geometry.gravity import Gravity
 from cuboidcli.geometry.vanishing import estimate_from_lines
 from tests.geometry.test_vanishing import render_room
@@ -87,3 +88,42 @@ def test_neither_sure_gives_one_note_and_the_relatively_more_confident_one(lines
     # lines that fix nothing (confidence 0) are no witness; nothing at all: no gravity
     assert combine_down(None, _lines(lines, _tilted(0.0), 0.0), lines_first=True).gravity is None
     assert combine_down(None, None, lines_first=False) == combine_down(None, None, lines_first=True)
+
+
+def test_a_confidence_exactly_at_its_bar_is_sure(lines):
+    depth = _depth(_tilted(30.0), 0.5)
+    at_bar = _lines(lines, _tilted(0.0), LINES_SURE)
+    choice = combine_down(depth, at_bar, lines_first=True)  # the first witness, just sure: it is used
+    assert choice.gravity.source == "photo lines" and choice.sure and choice.note == ""
+    alone = combine_down(None, at_bar, lines_first=False)  # no other witness, no agreement: still sure
+    assert alone.sure and alone.note == "" and alone.gravity.source == "photo lines"
+    depth_at_bar = combine_down(_depth(_tilted(30.0), DEPTH_SURE), None, lines_first=False)
+    assert depth_at_bar.sure and depth_at_bar.gravity.source == "depth"
+
+
+def test_a_sure_second_witness_beats_a_more_confident_unsure_first(lines):
+    # lines at 0.9 of their bar, depth at 1.2 of its bar: the sure one, though the lines come first
+    choice = combine_down(_depth(_tilted(30.0), 1.2 * DEPTH_SURE), _lines(lines, _tilted(0.0), 0.36), True)
+    assert choice.gravity.source == "depth" and choice.sure
+    # depth at 0.6 of its bar is not sure: the relatively more confident lines, with a note
+    unsure = combine_down(_depth(_tilted(30.0), 0.6 * DEPTH_SURE), _lines(lines, _tilted(0.0), 0.36), True)
+    assert unsure.gravity.source == "photo lines" and not unsure.sure
+    assert "using the lines estimate" in unsure.note
+    # and the depth's part of the note carries the angle between them
+    assert f"sure from {DEPTH_SURE:g}), 30 degrees apart" in unsure.note
+    deeper = combine_down(_depth(_tilted(30.0), 0.9 * DEPTH_SURE), _lines(lines, _tilted(0.0), 0.1), True)
+    assert deeper.gravity.source == "depth" and "using the depth estimate" in deeper.note
+
+
+def test_nothing_found_is_not_sure_and_the_choice_is_frozen():
+    choice = combine_down(None, None, lines_first=True)
+    assert choice.gravity is None and choice.sure is False and choice.note == ""
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        choice.sure = True
+
+
+def test_angle_deg_of_unnormalised_directions():
+    assert angle_deg(np.array([0.0, 2.0, 0.0]), np.array([0.0, 0.0, 3.0])) == pytest.approx(90.0)
+    assert angle_deg(np.array([2.0, 0.0, 0.0]), np.array([3.0, 3.0, 0.0])) == pytest.approx(45.0)
+    assert angle_deg(np.array([0.0, 5.0, 0.0]), np.array([0.0, 0.5, 0.0])) == pytest.approx(0.0, abs=1e-6)
+    assert angle_deg(np.array([0.0, 5.0, 0.0]), np.array([0.0, -0.5, 0.0])) == pytest.approx(180.0)
