@@ -41,9 +41,12 @@ def _materials_for(world: World, category: str, roles, rng: np.random.Generator)
 
 
 def _inside_room(room: Room, pose: Pose, lo: np.ndarray, hi: np.ndarray) -> bool:
+    """Whether the piece's footprint lies inside the room and its top below the ceiling (a tall wall
+    cupboard in a low room would cut into the ceiling slab)."""
     corners = np.array([[x, y, 0.0] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])])
     xy = pose.apply(corners)[:, :2]
-    return bool((xy >= -1e-9).all() and (xy <= room.size[:2] + 1e-9).all())
+    inside = (xy >= -1e-9).all() and (xy <= room.size[:2] + 1e-9).all()
+    return bool(inside and pose.z + hi[2] <= room.size[2] + 1e-9)
 
 
 def place_assembly(
