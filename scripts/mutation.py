@@ -139,7 +139,22 @@ TARGETS = (
             ),
         )
         for name in ("lines", "vp_model", "manhattan_vp", "vanishing", "down")
+    ),  # a room before it is fitted: the scan or sequence read and checked (units, extent), a sequence fused,
+    # the cloud's voxels, normals and up direction, and the neighbourhood graph the objects are grown on
+    Target(
+        "room_load", "cuboidcli/load/room.py", None, ("tests/load/test_load.py", "tests/load/test_units.py")
     ),
+    Target(
+        "units",
+        "cuboidcli/load/units.py",
+        None,
+        ("tests/load/test_units_edges.py", "tests/load/test_units.py"),
+    ),
+    Target(
+        "fuse", "cuboidcli/load/fuse.py", None, ("tests/load/test_fuse_edges.py", "tests/io/test_sequence.py")
+    ),
+    Target("cloud", "cuboidcli/geometry/cloud.py", None, ("tests/geometry/test_cloud.py",)),
+    Target("graph", "cuboidcli/geometry/graph.py", None, ("tests/geometry/test_graph.py",)),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.

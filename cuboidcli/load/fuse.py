@@ -25,6 +25,8 @@ _HALF = 1 << 20
 def _reduce(keys, sums, counts, csums, ccounts, dists, frames):
     """Merge rows that share a voxel key: sums add up, the observation nearest to the voxel centre stays
     (on a tie the earlier row, i.e. the earlier frame: a stable sort keeps the result deterministic)."""
+    if len(keys) == 0:  # no frame so far had valid depth: nothing to merge (reduceat needs a row)
+        return keys, sums, counts, csums, ccounts, dists, frames
     order = np.argsort(keys, kind="stable")
     keys, dists = keys[order], dists[order]
     starts = np.flatnonzero(np.r_[True, keys[1:] != keys[:-1]])

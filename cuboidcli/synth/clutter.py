@@ -87,7 +87,10 @@ def plant(rng: np.random.Generator) -> MeshAssembly:
     rb, h = rng.uniform(0.1, 0.15), rng.uniform(0.2, 0.35)
     a.add(frustum_mesh(rb, rb * rng.uniform(1.2, 1.4), h, segments=12), ACCENT)
     radii = [rng.uniform(0.2, 0.4), rng.uniform(0.2, 0.4), rng.uniform(0.3, 0.6)]
-    a.add(blob_mesh(radii, rng, roughness=0.3), LEAF, (0.0, 0.0, h + 0.8 * radii[2]))
+    v, f = blob_mesh(radii, rng, roughness=0.3)
+    # The foliage sits 0.8 r_z above the pot's rim, but a rough blob's bumps reach up to 1.3 r_z below its
+    # centre: lift those few that would reach through the floor to stand on it.
+    a.add((v, f), LEAF, (0.0, 0.0, max(h + 0.8 * radii[2], -float(v[:, 2].min()))))
     return a
 
 

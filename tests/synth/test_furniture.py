@@ -84,12 +84,7 @@ def test_people_and_pipes_have_their_documented_size():
         assert np.allclose((lo[:2] + hi[:2]) / 2, 0.0, atol=0.01)  # the frame origin is on its axis
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="clutter.plant centres the foliage blob 0.8 r_z above the pot, but the blob's bumps (roughness "
-    "0.3) reach up to 1.3 r_z below its centre: about 1 plant in 400 pokes below its base into the floor "
-    "(generator seed 190: 2.4 cm)",
-)
 def test_plant_foliage_stays_above_the_floor():
-    lo, _ = plant(np.random.default_rng(190)).bounds()
-    assert lo[2] >= 0.0
+    # generator seed 190 draws foliage whose bumps would reach 2.4 cm below the pot's base
+    lows = np.array([plant(np.random.default_rng(seed)).bounds()[0][2] for seed in range(400)])
+    assert lows.min() >= 0.0
