@@ -153,7 +153,12 @@ TARGETS = (
     Target(
         "fuse", "cuboidcli/load/fuse.py", None, ("tests/load/test_fuse_edges.py", "tests/io/test_sequence.py")
     ),
-    Target("cloud", "cuboidcli/geometry/cloud.py", None, ("tests/geometry/test_cloud.py",)),
+    Target(
+        "cloud",
+        "cuboidcli/geometry/cloud.py",
+        None,
+        ("tests/geometry/test_cloud_scores.py", "tests/geometry/test_cloud.py"),
+    ),
     Target("graph", "cuboidcli/geometry/graph.py", None, ("tests/geometry/test_graph.py",)),
 )
 

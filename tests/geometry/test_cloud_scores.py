@@ -1,0 +1,140 @@
+"""The floor evidence of a room's up direction, in numbers: a cloud built so that every direction's score is
+known (a floor, one wall, clutter that faces neither), checked against the rule of
+:func:`cuboidcli.geometry.cloud.floor_scores` (share of the points on the floor times the room-height
+plausibility of the extent) and against each threshold of :func:`~cuboidcli.geometry.cloud.room_up` just
+inside and just outside it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cuboidcli.geometry.cloud import ROOM_HEIGHT_M, TIE, floor_scores, is_camera_view, room_up, voxel_groups
+
+N = 10_000
+X, Y, Z = np.eye(3)
+
+
+def room(floor: int = 600, wall: int = 420, height: float = 3.0, floor_z: float = 0.0, seed: int = 0):
+    """``floor`` points on z = ``floor_z`` (normals +z) over 3 x 3 m, ``wall`` points on x = 0 (normals +x)
+    up to ``height``, 2 % of N at z = ``height`` and the rest in between, both facing y and kept away from
+    the room's sides (no direction finds a floor in them). Along z the 1st to 99th percentile of the heights
+    is exactly [0, height] when ``floor_z`` is 0."""
+    rng = np.random.default_rng(seed)
+    top = N // 50
+    bulk = N - floor - wall - top
+    pts = np.concatenate(
+        [
+            np.c_[rng.uniform(0, 3, (floor, 2)), np.full(floor, floor_z)],
+            np.c_[np.zeros(wall), rng.uniform(0, 3, wall), rng.uniform(0, height, wall)],
+            np.c_[rng.uniform(0.5, 2.5, top), rng.uniform(1, 2, top), np.full(top, height)],
+            np.c_[rng.uniform(0.5, 2.5, bulk), rng.uniform(1, 2, bulk), rng.uniform(0, height, bulk)],
+        ]
+    )
+    normals = np.concatenate([np.tile(Z, (floor, 1)), np.tile(X, (wall, 1)), np.tile(Y, (top + bulk, 1))])
+    return pts, normals
+
+
+def along(up: np.ndarray, axis: np.ndarray) -> bool:
+    """Within a degree of ``axis`` (the floor's refit takes in a few clutter points near it)."""
+    return float(up @ axis) > np.cos(np.deg2rad(1.0))
+
+
+def plausibility(extent: float) -> float:
+    lo, full, hi = ROOM_HEIGHT_M
+    return float(np.clip((extent - lo) / (full - lo), 0.0, 1.0) * min(1.0, hi / extent) ** 2)
+
+
+@pytest.mark.parametrize(("height", "expected"), [(0.5, 0.0), (1.2, 0.5), (3.0, 1.0), (8.0, 0.25)])
+def test_a_floor_scores_its_share_times_the_plausibility_of_the_room_height(height, expected):
+    assert plausibility(height) == pytest.approx(expected)
+    scores = floor_scores(*room(height=height), np.eye(3))
+    assert scores[4] == pytest.approx(600 / N * expected, rel=1e-9)  # +z: the floor
+    assert scores[0] == pytest.approx(420 / N * plausibility(2.5), rel=0.02)  # +x: the wall, 2.5 m deep
+    assert scores[[1, 2, 3, 5]].tolist() == [0.0, 0.0, 0.0, 0.0]
+
+
+def test_a_plane_above_the_lowest_band_is_no_floor():
+    # the clutter reaches down to z = 0: a plane a fifth of the way up is not in the lowest 15 %
+    assert floor_scores(*room(floor_z=0.6), np.eye(3))[4] == 0.0
+    assert floor_scores(*room(floor_z=0.3), np.eye(3))[4] > 0.05
+
+
+def test_a_floor_needs_one_percent_of_the_points():
+    assert floor_scores(*room(floor=120), np.eye(3))[4] == pytest.approx(0.012)
+    assert floor_scores(*room(floor=80), np.eye(3))[4] == 0.0
+
+
+def test_the_cloud_overrules_the_hint_only_at_twice_its_score():
+    up = room_up(*room(floor=600, wall=250), hint=X)  # the floor scores 2.4 times the wall
+    assert up.source == "estimated" and along(up.up, Z)
+    assert up.confidence == pytest.approx(1 - 250 / 600, abs=0.01) and up.warning == ""
+    kept = room_up(*room(floor=600, wall=330), hint=X)  # 1.8 times: the hint's wall normal stays up
+    assert along(kept.up, X)
+
+
+def test_an_overruled_hint_is_a_warning_only_under_the_unsure_confidence():
+    sure = room_up(*room(floor=600, wall=420), hint=Y)  # confidence 0.3
+    assert along(sure.up, Z) and sure.confidence == pytest.approx(0.3, abs=0.01) and sure.warning == ""
+    unsure = room_up(*room(floor=600, wall=480), hint=Y)  # confidence 0.2
+    assert along(unsure.up, Z) and unsure.confidence == pytest.approx(0.2, abs=0.01)
+    assert unsure.warning.startswith("up direction unsure (its floor is not clearly the lowest large plane")
+
+
+def test_the_hint_s_own_axis_is_a_warning_only_in_a_tie():
+    near_tie = room_up(*room(floor=600, wall=560), hint=Z)  # confidence 0.067: the hint agrees
+    assert along(near_tie.up, Z) and near_tie.warning == ""
+    tie = room_up(*room(floor=600, wall=582), hint=Z)  # confidence 0.03
+    assert along(tie.up, Z) and tie.confidence < TIE and tie.warning.startswith("up direction unsure")
+
+
+def test_an_up_axis_with_few_surfaces_far_from_the_hint_gives_way_to_it():
+    estimated = room_up(*room(floor=600, wall=300), hint=Y)  # 6 % of the normals face up
+    assert estimated.source == "estimated" and along(estimated.up, Z)
+    assert estimated.support[0] == pytest.approx(0.06, abs=0.005)
+    hinted = room_up(*room(floor=400, wall=200), hint=Y)  # 4 %: the hint, with a warning
+    assert hinted.source == "hint" and along(hinted.up, Y) and hinted.confidence == 0.0
+    assert "the cloud's up axis carries few surfaces" in hinted.warning
+
+
+def test_a_hint_of_any_length_is_a_direction():
+    hinted = room_up(*room(floor=400, wall=200), hint=5.0 * Y)
+    assert hinted.source == "hint" and np.linalg.norm(hinted.up) == pytest.approx(1.0)
+
+
+def test_a_given_up_without_a_manhattan_frame_has_no_support():
+    pts, _ = room()
+    up = room_up(pts, np.zeros_like(pts), hint=Z, given=2.0 * Y)  # no normals: no frame
+    assert up.source == "given" and up.axes is None and up.support == (0.0, 0.0, 0.0)
+    assert np.allclose(up.up, Y)
+
+
+def test_voxel_groups_are_means_in_lexicographic_voxel_order():
+    rng = np.random.default_rng(3)
+    cells = np.array([(i, j, k) for i in range(3) for j in range(4) for k in range(2)])
+    points = np.repeat(cells, 5, axis=0) * 0.1 + rng.uniform(0.01, 0.09, (len(cells) * 5, 3))
+    points[0] = 0.01  # the lowest corner: voxels start there
+    order = rng.permutation(len(points))
+    means, inverse, first = voxel_groups(points[order], 0.1)
+    assert len(means) == len(cells) == 24 and np.array_equal(inverse[first], np.arange(24))
+    for g in range(24):
+        members = points[order][inverse == g]
+        assert len(members) == 5 and np.allclose(means[g], members.mean(0))
+        assert np.array_equal(np.floor(members / 0.1), np.tile(cells[g], (5, 1)))  # the g-th in x, y, z order
+
+
+def camera_view(front: int, hidden: int, behind_m: float) -> np.ndarray:
+    """A wall 2 m in front of a camera at the origin, ``front`` points on it, and ``hidden`` points on the
+    rays of the first ones, ``behind_m`` further along them."""
+    rng = np.random.default_rng(1)
+    rays = np.c_[rng.uniform(-0.5, 0.5, (front, 2)), np.ones(front)]
+    wall = rays * 2.0
+    back = wall[:hidden] * (1.0 + behind_m / np.linalg.norm(wall[:hidden], axis=1, keepdims=True))
+    return np.concatenate([wall, back])
+
+
+def test_a_camera_view_has_four_in_five_points_in_front():
+    assert is_camera_view(camera_view(80, 20, 0.12))  # 80 % visible: a view
+    assert not is_camera_view(camera_view(70, 30, 0.12))  # 70 %: surfaces behind each other
+    assert is_camera_view(camera_view(70, 30, 0.08))  # within 10 cm of the front: one surface's noise
+    assert not is_camera_view(camera_view(80, 0, 0.0) - [0.0, 0.0, 1.95])  # points near or behind the camera
