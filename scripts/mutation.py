@@ -157,7 +157,11 @@ TARGETS = (
         "cloud",
         "cuboidcli/geometry/cloud.py",
         None,
-        ("tests/geometry/test_cloud_scores.py", "tests/geometry/test_cloud.py"),
+        (
+            "tests/geometry/test_cloud_scores.py",
+            "tests/geometry/test_free_side.py",
+            "tests/geometry/test_cloud.py",
+        ),
     ),
     Target("graph", "cuboidcli/geometry/graph.py", None, ("tests/geometry/test_graph.py",)),
 )
