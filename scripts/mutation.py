@@ -142,7 +142,10 @@ TARGETS = (
     ),  # a room before it is fitted: the scan or sequence read and checked (units, extent), a sequence fused,
     # the cloud's voxels, normals and up direction, and the neighbourhood graph the objects are grown on
     Target(
-        "room_load", "cuboidcli/load/room.py", None, ("tests/load/test_load.py", "tests/load/test_units.py")
+        "room_load",
+        "cuboidcli/load/room.py",
+        None,
+        ("tests/load/test_room_load_edges.py", "tests/load/test_load.py", "tests/load/test_units.py"),
     ),
     Target(
         "units",
