@@ -24,7 +24,8 @@ and 400x300 and 480x360 crops 20 px right and 15 up of the centre and the revers
 estimates within 10 %, those the fit would take (confidence from FOCAL_SURE) right and wrong, the highest
 confidence of a wrong one, and the fx the fit takes within 10 % (by where it came from).
 
-    python scripts/eval_photo_lines.py [--data ../shared/data] [--draw /tmp] [--seeds 4] [--synth 40] [--crops]
+    python scripts/eval_photo_lines.py [--data ../shared/data] [--draw /tmp] [--seeds 4] [--synth 40]
+        [--crops]
 
 ``--draw DIR`` writes DIR/vp_<name>.png: the segments coloured by the vanishing point they support (red:
 vertical, green and blue: horizontal, grey: none).
@@ -279,8 +280,8 @@ def focal_over_seeds(group: str, photos: list[tuple[str, np.ndarray, float]], se
         by_source = ", ".join(f"{k} {v[0]}/{v[1]}" for k, v in fit_ok.items())
         print(
             f"{group} {label}, seeds 0-{seeds - 1}: lines' fx within 10 % {within}/{n}; confidence >= "
-            f"{FOCAL_SURE:g}: {right} right, {wrong} wrong (most confident wrong {worst[0]:.2f}, {worst[1]}); "
-            f"the fit's fx within 10 % {fit_within}/{n} ({by_source})"
+            f"{FOCAL_SURE:g}: {right} right, {wrong} wrong (most confident wrong {worst[0]:.2f}, "
+            f"{worst[1]}); the fit's fx within 10 % {fit_within}/{n} ({by_source})"
         )
 
 
@@ -308,8 +309,9 @@ def summary(rows: list[dict]) -> None:
         return f"{good}/{len(rows)} ({lines} from the sure lines, {ruled} from lines ruling out the default)"
 
     print(
-        f"the fit's fx (lines from confidence {FOCAL_SURE:g}, else the default field of view unless the lines "
-        f"rule it out) within 10 %: full frame {used_within('full')}; 480x360 crop {used_within('crop')}"
+        f"the fit's fx (lines from confidence {FOCAL_SURE:g}, else the default field of view unless the "
+        f"lines rule it out) within 10 %: full frame {used_within('full')}; 480x360 crop "
+        f"{used_within('crop')}"
     )
 
 

@@ -338,3 +338,28 @@ def test_real_photos_focal_length(real_photos):
     print(f"within 10 %: full frames {ok_full}/{len(real_photos)}, crops {ok_crop}/{len(real_photos)}")
     assert ok_full >= len(real_photos) - 2  # measured: all but one (the living room, facing its wall)
     assert ok_crop >= len(real_photos) - 6  # measured: 7 of 11
+
+
+def test_real_photos_fit_focal_length(real_photos):
+    """The fx a fit without camera information takes (load.camera): the sure lines', else the default
+    field of view unless the unsure lines rule it out. The default suits the full Kinect-like frames; a
+    480x360 centre crop keeps fx, and the default (392 px) is 25 % short of it."""
+    from cuboidcli.load import camera as cameras
+
+    def fit_fx(est, w, h):
+        camera = cameras.from_lines(est, w, h) or cameras.default_for(w, h, [], est)
+        return camera.fx, camera.source
+
+    full, crop, ruled = 0, 0, 0
+    for r in real_photos:
+        f_full, _ = (
+            fit_fx(r["est"], 640, 480) if r["name"] != "nyu/dining_crop" else fit_fx(r["est"], 560, 425)
+        )
+        f_crop, source = fit_fx(r["crop"], 480, 360)
+        full += abs(f_full / r["fx"] - 1) <= 0.10
+        crop += abs(f_crop / r["fx"] - 1) <= 0.10
+        ruled += "rule out" in source
+        print(f"{r['name']}: the fit's fx {f_full:.0f} px, its crop's {f_crop:.0f} px ({source})")
+    assert full == len(real_photos)  # measured: 11 of 11
+    assert crop >= len(real_photos) - 5  # measured: 7 of 11 (the default alone: 1)
+    assert ruled >= 5  # measured: 7 crops whose default the lines rule out, 6 of them right
