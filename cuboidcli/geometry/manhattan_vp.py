@@ -22,7 +22,10 @@ segments fit which vanishing point changes with it): the best frame is found and
 length of a log-spaced grid, from the best frames drawn at every focal length of the grid, and the grid's
 best local minima start the joint refinement. The profile also says how sure the estimate is: a frame at
 a focal length 20 % away that explains the segments about as well makes f ambiguous; f is not observable
-at all when fewer than two vanishing points are finite (a camera facing a wall squarely, level).
+at all when fewer than two vanishing points are finite (a camera facing a wall squarely, level). The fit
+keeps a finer likelihood profile (:attr:`ManhattanFit.profile`, the best frame refined on all segments at
+each of LIKELIHOOD_STEPS focal lengths), from which an unsure estimate can still rule a focal length out
+(:meth:`cuboidcli.geometry.vanishing.LineEstimate.rules_out`).
 
 Vectors are in the OpenCV camera frame (x right, y down, z forward); pixels have their centres at integers.
 """
