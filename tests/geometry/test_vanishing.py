@@ -190,6 +190,9 @@ def test_random_strokes_give_low_confidence():
     est = estimate_from_lines(img)
     assert est is not None  # segments but no common directions
     assert est.down_confidence < 0.2 and est.focal_confidence < 0.2
+    # nor do they rule out a focal length, though their profile has a sharp minimum (at 682 px, 3.3
+    # segments' worth below the default's 522 px, spread 0.04)
+    assert est.coherence == 0.0 and not est.rules_out(522.2)
 
 
 def test_turning_the_image_by_90_degrees_keeps_down():

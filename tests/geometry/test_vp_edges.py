@@ -609,6 +609,10 @@ def test_an_unsure_estimate_rules_out_a_focal_length_the_segments_fit_worse():
     assert _profiled(parabola, focal_sd=vanishing.RULE_OUT_SD).rules_out(392.0)
     assert not _profiled(parabola, focal_sd=1.01 * vanishing.RULE_OUT_SD).rules_out(392.0)
     assert not _profiled(parabola, focal_sd=math.inf).rules_out(392.0)
+    assert est.coherence == 1.0  # 90 % of the segments' length on three directions of 400 segments
+    threshold = vanishing.RULE_OUT_COHERENCE
+    assert dataclasses.replace(est, coherence=threshold).rules_out(392.0)
+    assert not dataclasses.replace(est, coherence=0.99 * threshold).rules_out(392.0)
     assert not dataclasses.replace(est, focal_px=None).rules_out(392.0)
 
 
