@@ -177,6 +177,8 @@ def test_a_level_camera_facing_a_wall_fixes_down_but_not_the_focal_length():
 def test_an_image_without_lines_gives_no_estimate(image):
     est = estimate_from_lines(image)
     assert est is None or (est.down_confidence < 0.2 and est.focal_confidence < 0.2)
+    default_fx = 0.5 * max(image.shape[:2]) / math.tan(math.radians(31.5))
+    assert est is None or not est.rules_out(default_fx)  # the default field of view stays
 
 
 def test_random_strokes_give_low_confidence():
