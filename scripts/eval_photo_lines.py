@@ -14,14 +14,18 @@ principal point at the image centre) and is compared with its true depth map:
 - the time per photo, and that of a 12 MP photo (an NYU frame scaled to 4000x3000);
 - the focal length ``cuboids fit`` takes for the photo alone (no -K, no EXIF): the lines' when their
   confidence reaches ``load.camera.FOCAL_SURE``, else the default field of view (the built-in depth network
-  predicts none), on the full frame and on the crop.
+  predicts none) unless the lines rule it out (then their unsure estimate), on the full frame and on the
+  crop.
 
 With ``--seeds N``, the focal lengths of the photos and their crops are estimated again with RANSAC
 seeds 0..N-1, and with ``--synth M`` of M synthetic rooms too (:mod:`cuboidcli.synth`, seeds 0..M-1, the
-NYU camera, 640x480, and their 480x360 centre crops): per group, the estimates within 10 %, those the fit
-would take (confidence from FOCAL_SURE) right and wrong, and the highest confidence of a wrong one.
+NYU camera, 640x480, and their 480x360 centre crops; ``--crops``: also centre crops of 560x420, 520x390
+and 400x300 and 480x360 crops 20 px right and 15 up of the centre and the reverse): per group, the
+estimates within 10 %, those the fit would take (confidence from FOCAL_SURE) right and wrong, the highest
+confidence of a wrong one, and the fx the fit takes within 10 % (by where it came from).
 
     python scripts/eval_photo_lines.py [--data ../shared/data] [--draw /tmp] [--seeds 4] [--synth 40]
+        [--crops]
 
 ``--draw DIR`` writes DIR/vp_<name>.png: the segments coloured by the vanishing point they support (red:
 vertical, green and blue: horizontal, grey: none).
@@ -44,7 +48,7 @@ from cuboidcli.geometry.lines import detect_segments
 from cuboidcli.geometry.vanishing import LineEstimate, estimate_from_lines
 from cuboidcli.io.depth import read_depth, read_rgb
 from cuboidcli.io.photo import default_camera
-from cuboidcli.load.camera import FOCAL_SURE
+from cuboidcli.load.camera import FOCAL_SURE, default_for, from_lines
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 CROP = (480, 360)
@@ -130,6 +134,8 @@ def measure(name: str, rgb: np.ndarray, depth_m: np.ndarray, cam: Camera) -> tup
         "crop_conf": 0.0 if crop is None else crop.focal_confidence,
         "full_default": default_camera(w, h).fx,
         "crop_default": default_camera(*CROP).fx,
+        "full_used": fit_focal(est, w, h),
+        "crop_used": fit_focal(crop, *CROP),
         "segments": 0 if est is None else est.n_segments,
         "ms": 1000 * wall,
         "cpu_ms": 1000 * cpu,
@@ -144,12 +150,20 @@ HEADER = (
 )
 
 
+def fit_focal(est: LineEstimate | None, width: int, height: int) -> tuple[float, str]:
+    """(fx, source) ``cuboids fit`` takes for a photo without -K or EXIF, as load.camera decides it: the
+    lines' from a focal confidence of FOCAL_SURE ("lines"), else the default field of view ("default")
+    unless the lines rule it out ("ruled out": then the lines' unsure estimate)."""
+    camera = from_lines(est, width, height)
+    if camera is not None:
+        return camera.fx, "lines"
+    camera = default_for(width, height, [], est)
+    return camera.fx, "default" if camera.source == default_camera(width, height).source else "ruled out"
+
+
 def used_focal(r: dict, key: str) -> tuple[float, str]:
-    """(fx, source) ``cuboids fit`` takes for the photo (``key`` "full" or "crop") without -K or EXIF:
-    the lines' from a focal confidence of FOCAL_SURE, else the default field of view."""
-    if r[key] is not None and r[key + "_conf"] >= FOCAL_SURE:
-        return r[key], "lines"
-    return r[key + "_default"], "default"
+    """(fx, source) ``cuboids fit`` takes for the photo (``key`` "full" or "crop") without -K or EXIF."""
+    return r[key + "_used"]
 
 
 def format_row(r: dict) -> str:
@@ -158,7 +172,7 @@ def format_row(r: dict) -> str:
 
     def used(key):
         f, source = used_focal(r, key)
-        return f"{f:4.0f} {100 * (f / r['fx'] - 1):+4.0f}% {source[0]}"
+        return f"{f:4.0f} {100 * (f / r['fx'] - 1):+4.0f}% {source[0]}"  # l, d or r (ruled out)
 
     return (
         f"{r['name']:22s} {r['down']:6.2f} {r['down_conf']:5.2f} {r['known']:7.2f} {r['rot90']:6.2f} | "
@@ -173,6 +187,7 @@ def main() -> None:
     ap.add_argument("--draw", type=Path, default=None, help="write vp_<name>.png drawings here")
     ap.add_argument("--seeds", type=int, default=0, help="estimate the focal lengths with this many seeds")
     ap.add_argument("--synth", type=int, default=0, help="and on this many synthetic rooms (with --seeds)")
+    ap.add_argument("--crops", action="store_true", help="with --seeds: crops of other sizes and places too")
     args = ap.parse_args()
     if not (args.data / "nyu").is_dir():
         raise SystemExit(f"no real frames in {args.data}")
@@ -193,17 +208,10 @@ def main() -> None:
     time_12mp(read_rgb(next((args.data / "nyu").glob("basement_00000_rgb.*"))))
     if args.seeds:
         photos = [(name, read_rgb(rgb), cam.fx) for name, rgb, _, cam, _ in frames(args.data)]
-        focal_over_seeds("real", photos, args.seeds)
+        crops = CROPS if args.crops else [CROPS[0], CROPS[3]]
+        focal_over_seeds("real", photos, args.seeds, crops)
         if args.synth:
-            focal_over_seeds("synthetic", synthetic_rooms(args.synth), args.seeds)
-
-
-def centre_crop(rgb: np.ndarray) -> np.ndarray | None:
-    h, w = rgb.shape[:2]
-    if w < CROP[0] or h < CROP[1]:
-        return None
-    y0, x0 = (h - CROP[1]) // 2, (w - CROP[0]) // 2
-    return np.ascontiguousarray(rgb[y0 : y0 + CROP[1], x0 : x0 + CROP[0]])
+            focal_over_seeds("synthetic", synthetic_rooms(args.synth), args.seeds, crops)
 
 
 def synthetic_rooms(n: int) -> list[tuple[str, np.ndarray, float]]:
@@ -215,19 +223,50 @@ def synthetic_rooms(n: int) -> list[tuple[str, np.ndarray, float]]:
     return [(f"synth/{seed}", generate_scene(seed, camera).rgb, camera.fx) for seed in range(n)]
 
 
-def focal_over_seeds(group: str, photos: list[tuple[str, np.ndarray, float]], seeds: int) -> None:
-    """One line per full frames and crops: estimates within 10 %, taken by the fit (confidence from
-    FOCAL_SURE) right / wrong, and the most confident wrong one, over RANSAC seeds 0..seeds-1."""
-    for part in ("full", "crop"):
+#: The cuts of ``--crops``: (label, width, height, dx, dy), the crop moved by (dx, dy) pixels from the
+#: centre; width 0 is the whole frame.
+CROPS = [
+    ("full", 0, 0, 0, 0),
+    ("560x420", 560, 420, 0, 0),
+    ("520x390", 520, 390, 0, 0),
+    ("480x360", 480, 360, 0, 0),
+    ("400x300", 400, 300, 0, 0),
+    ("480x360 +20-15", 480, 360, 20, -15),
+    ("480x360 -20+15", 480, 360, -20, 15),
+]
+
+
+def cut(rgb: np.ndarray, width: int, height: int, dx: int = 0, dy: int = 0) -> np.ndarray | None:
+    """The width x height part of the image moved by (dx, dy) from its centre; width 0: the image."""
+    if width == 0:
+        return rgb
+    h, w = rgb.shape[:2]
+    if w < width or h < height:
+        return None
+    x0 = min(max((w - width) // 2 + dx, 0), w - width)
+    y0 = min(max((h - height) // 2 + dy, 0), h - height)
+    return np.ascontiguousarray(rgb[y0 : y0 + height, x0 : x0 + width])
+
+
+def focal_over_seeds(group: str, photos: list[tuple[str, np.ndarray, float]], seeds: int, crops) -> None:
+    """One line per cut (``crops``: rows of CROPS): the lines' estimates within 10 %, those sure enough for
+    the fit (confidence from FOCAL_SURE) right / wrong and the most confident wrong one, and the fit's fx
+    (:func:`fit_focal`) within 10 %: in all, and from the sure lines, the lines ruling out the default and
+    the default (right / taken), over RANSAC seeds 0..seeds-1."""
+    for label, *spec in crops:
         n = within = right = wrong = 0
         worst = (0.0, "-")
+        fit_ok = {"lines": [0, 0], "ruled out": [0, 0], "default": [0, 0]}
         for name, rgb, fx in photos:
-            img = rgb if part == "full" else centre_crop(rgb)
+            img = cut(rgb, *spec)
             if img is None:
                 continue
             for seed in range(seeds):
                 est = estimate_from_lines(img, seed=seed)
                 n += 1
+                f_fit, source = fit_focal(est, img.shape[1], img.shape[0])
+                fit_ok[source][0] += abs(f_fit / fx - 1) <= 0.10
+                fit_ok[source][1] += 1
                 if est is None or est.focal_px is None:
                     continue
                 ok = abs(est.focal_px / fx - 1) <= 0.10
@@ -237,9 +276,12 @@ def focal_over_seeds(group: str, photos: list[tuple[str, np.ndarray, float]], se
                 if not ok and est.focal_confidence > worst[0]:
                     off = 100 * (est.focal_px / fx - 1)
                     worst = (est.focal_confidence, f"{name} seed {seed}, {off:+.0f} %")
+        fit_within = sum(v[0] for v in fit_ok.values())
+        by_source = ", ".join(f"{k} {v[0]}/{v[1]}" for k, v in fit_ok.items())
         print(
-            f"{group} {part}, seeds 0-{seeds - 1}: fx within 10 % {within}/{n}; confidence >= "
-            f"{FOCAL_SURE:g}: {right} right, {wrong} wrong; most confident wrong {worst[0]:.2f} ({worst[1]})"
+            f"{group} {label}, seeds 0-{seeds - 1}: lines' fx within 10 % {within}/{n}; confidence >= "
+            f"{FOCAL_SURE:g}: {right} right, {wrong} wrong (most confident wrong {worst[0]:.2f}, "
+            f"{worst[1]}); the fit's fx within 10 % {fit_within}/{n} ({by_source})"
         )
 
 
@@ -262,11 +304,14 @@ def summary(rows: list[dict]) -> None:
         """The fit's fx: the lines' from FOCAL_SURE, else the default field of view."""
         used = [used_focal(r, key) for r in rows]
         good = sum(abs(f / r["fx"] - 1) <= bound for (f, _), r in zip(used, rows, strict=True))
-        return f"{good}/{len(rows)} ({sum(s == 'lines' for _, s in used)} from the lines)"
+        lines = sum(s == "lines" for _, s in used)
+        ruled = sum(s == "ruled out" for _, s in used)
+        return f"{good}/{len(rows)} ({lines} from the sure lines, {ruled} from lines ruling out the default)"
 
     print(
-        f"the fit's fx (lines from confidence {FOCAL_SURE:g}, else the default field of view) within 10 %: "
-        f"full frame {used_within('full')}; 480x360 crop {used_within('crop')}"
+        f"the fit's fx (lines from confidence {FOCAL_SURE:g}, else the default field of view unless the "
+        f"lines rule it out) within 10 %: full frame {used_within('full')}; 480x360 crop "
+        f"{used_within('crop')}"
     )
 
 

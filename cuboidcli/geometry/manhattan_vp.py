@@ -22,7 +22,10 @@ segments fit which vanishing point changes with it): the best frame is found and
 length of a log-spaced grid, from the best frames drawn at every focal length of the grid, and the grid's
 best local minima start the joint refinement. The profile also says how sure the estimate is: a frame at
 a focal length 20 % away that explains the segments about as well makes f ambiguous; f is not observable
-at all when fewer than two vanishing points are finite (a camera facing a wall squarely, level).
+at all when fewer than two vanishing points are finite (a camera facing a wall squarely, level). The fit
+keeps a finer likelihood profile (:attr:`ManhattanFit.profile`, the best frame refined on all segments at
+each of LIKELIHOOD_STEPS focal lengths), from which an unsure estimate can still rule a focal length out
+(:meth:`cuboidcli.geometry.vanishing.LineEstimate.rules_out`).
 
 Vectors are in the OpenCV camera frame (x right, y down, z forward); pixels have their centres at integers.
 """
@@ -30,7 +33,7 @@ Vectors are in the OpenCV camera frame (x right, y down, z forward); pixels have
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -70,6 +73,9 @@ PRIOR_FOV_DEG = 60.0
 PRIOR_SIGMA = 0.35
 #: A rival frame at a focal length at least this factor away decides the focal length's ambiguity.
 RIVAL_FACTOR = 1.2
+#: Focal lengths of the likelihood profile (log-spaced over FOV_RANGE_DEG, about 4.4 % apart): the best
+#: frame at each, refined on all segments, says how much worse the segments fit there.
+LIKELIHOOD_STEPS = 48
 
 
 @dataclass(frozen=True)
@@ -97,6 +103,12 @@ class ManhattanFit:
     focal_margin: float
     """How much worse the best frame at a focal length RIVAL_FACTOR or more away explains the segments, in
     segments' worth (segment lengths relative to their mean); 0 when fx was given."""
+    size: tuple[int, int] = (0, 0)
+    """(width, height) of the image in pixels."""
+    profile: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
+    """(K, 2) the likelihood profile of the focal length: fx in pixels and how much worse (segments' worth,
+    the prior's cost included) the best frame at that fx explains the segments than the fit; (0, 2) when
+    fx was given."""
 
     def vanishing_points(self) -> np.ndarray:
         """(3, 3) homogeneous pixel coordinates of the vanishing points (rows), last coordinate 0 at
@@ -241,7 +253,7 @@ def fit_manhattan(
     costs = msac_cost(rots, phis, lines, aspect, thr) + (_prior(phis, thr) if free else 0.0)
     i = int(costs.argmin())
     rot, phi = rots[i], float(phis[i])
-    margin = 0.0
+    margin, profile = 0.0, np.zeros((0, 2))
     if free:  # the best frame at a focal length RIVAL_FACTOR or more away, refined on all segments
         far = np.abs(np.log(grid / phi)) >= math.log(RIVAL_FACTOR)
         if far.any():
@@ -252,6 +264,10 @@ def fit_manhattan(
             margin = float(rival - costs[i]) / thr**2
         else:
             margin = math.inf
+        fine, fine_costs = _likelihood_profile(
+            np.concatenate([prof_rots, rot[None]]), lines, aspect, thr, phi_range
+        )
+        profile = np.stack([fine * scale, (fine_costs - costs[i]) / thr**2], axis=1)
     res = np.abs(residuals(vanishing_points(rot, phi, aspect), lines))
     lab, rmin = res.argmin(axis=0), res.min(axis=0)
     lab[rmin >= thr] = -1
@@ -268,7 +284,24 @@ def fit_manhattan(
         rms_px=float(np.sqrt(np.mean(rmin[sel] ** 2)) * work_px) if sel.any() else math.inf,
         covariance=frame_covariance(rot, phi, lines, aspect, thr, free),
         focal_margin=margin,
+        size=(int(width), int(height)),
+        profile=profile,
     )
+
+
+def _likelihood_profile(cands: np.ndarray, lines: Segments, aspect: float, thr: float, phi_range):
+    """(phis (K,), costs (K,) with the prior's) of the best frame at each of LIKELIHOOD_STEPS focal
+    lengths: the candidate frames (C, 3, 3) are scored at each on all segments, and the best two are
+    refined there (the focal length held)."""
+    fine = np.geomspace(phi_range[0], phi_range[1], LIKELIHOOD_STEPS)
+    at = np.broadcast_to(fine[:, None], (len(fine), len(cands)))
+    first = msac_cost(np.broadcast_to(cands, at.shape + (3, 3)), at, lines, aspect, thr)
+    keep = np.argsort(first, axis=1)[:, :2]
+    starts = cands[keep].reshape(-1, 3, 3)
+    phis = np.repeat(fine, keep.shape[1])
+    refined, _ = refine_frames(starts, phis, lines, aspect, thr, False, phi_range, steps=4)
+    cost = msac_cost(refined, phis, lines, aspect, thr).reshape(len(fine), -1).min(axis=1)
+    return fine, cost + _prior(fine, thr)
 
 
 def _distinct_best(rots: np.ndarray, cost: np.ndarray, k: int, min_deg: float = 5.0) -> list[int]:

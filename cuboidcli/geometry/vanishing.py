@@ -9,7 +9,9 @@ three orthogonal scene directions and, when it is not given, the focal length to
   another), signed to point down. Vertical edges fix it directly, and the horizon (the line through the
   two horizontal vanishing points) fixes it as its normal;
 - the focal length: orthogonal directions d1 = K^-1 v1 and d2 = K^-1 v2 give, with the principal point
-  c, f^2 = -(v1 - c) . (v2 - c) for two finite vanishing points (fy / fx as given, else 1);
+  c, f^2 = -(v1 - c) . (v2 - c) for two finite vanishing points (fy / fx as given, else 1); with its
+  spread (that of the principal point, assumed at the centre, included), and whether the lines, even
+  unsure of it, rule out another focal length (a default field of view);
 - the room's axes for Manhattan alignment: up and the two horizontal directions, exactly orthogonal.
 
 Each comes with a confidence in [0, 1], 0 meaning "do not use". The image should be upright as displayed
@@ -50,6 +52,29 @@ FOCAL_SIGMA = 0.035
 # and fewer right ones reached load.camera.FOCAL_SURE (real full frames 24 of 44 against 27, synthetic
 # full frames 115 of 160 against 127, synthetic crops 62 of 160 against 68).
 
+#: Unsure focal lengths can still rule one out (:meth:`LineEstimate.rules_out`, the test of a default
+#: field of view): the other focal length is more than RULE_OUT_FACTOR away from the lines' estimate, the
+#: lines' best frame there explains the segments at least RULE_OUT_MARGIN segments' worth worse, the
+#: estimate's relative standard deviation (:attr:`LineEstimate.focal_sd`) is at most RULE_OUT_SD, and the
+#: segments are a room's (:attr:`LineEstimate.coherence` at least RULE_OUT_COHERENCE: random strokes,
+#: whose profile has sharp false minima, have 0; every real photo and crop here 1).
+RULE_OUT_FACTOR = 1.1
+RULE_OUT_MARGIN = 1.0
+RULE_OUT_SD = 0.1
+RULE_OUT_COHERENCE = 0.5
+#: Standard deviation of the true principal point from the image centre, as a share of the long side (the
+#: NYU camera's is 14 px below the centre of its 640x480 frames: 2.2 %, 2.9 % of a 480x360 centre crop).
+#: The focal length is read with the principal point at the centre; its error moves the focal length
+#: most when one of the two vanishing points that fix it is near the centre (a camera facing a wall).
+PRINCIPAL_SIGMA = 0.03
+# The three were chosen on the 11 real photos of ../shared/data cropped at their centres to 560x420,
+# 520x390, 480x360 and 400x300 and off-centre to 480x360 (20 px right and 15 up, and the reverse), and on
+# 40 synthetic rooms (the NYU camera) cut the same way, RANSAC seeds 0-1 (scripts/eval_photo_lines.py
+# --seeds 2 --synth 40 --crops): the default field of view is kept on every full frame (it is right
+# there), and ruled out on 15 of the 22 real 480x360 crops (13 rightly); the test of the spread keeps the
+# NYU living room's full frame (facing its wall: the lines' estimate 33 % short and 6.4 segments' worth
+# better than the default, but focal_sd 0.20) on the default.
+
 #: Below this share of the segments' length, a vanishing point does not count as seen.
 MIN_SUPPORT = 0.02
 #: Three directions fitted to N segments with no common structure (random lines, round things) explain
@@ -87,6 +112,36 @@ class LineEstimate:
     endpoints from the lines to their vanishing points: their angular consistency."""
     fit: ManhattanFit
     """The vanishing-point fit behind it (segment labels, vanishing points, covariance)."""
+    focal_sd: float = math.inf
+    """Relative standard deviation of ``focal_px``: the fit's, and that of a principal point
+    PRINCIPAL_SIGMA of the long side away from the image centre; inf without an estimate."""
+    coherence: float = 0.0
+    """In [0, 1]: how far the segments' support along the three directions exceeds what random segments
+    reach (0 at chance, 1 from COHERENT_SPAN beyond it); both confidences are scaled by it."""
+
+    def focal_worse_at(self, fx: float) -> float:
+        """How much worse (segments' worth, the focal prior's cost included) the lines' best frame at focal
+        length ``fx`` (pixels) explains the segments than the best the lines found: their likelihood
+        profile over the focal length (:attr:`ManhattanFit.profile`), interpolated in log fx. 0 without a
+        profile (a given focal length) or outside its range."""
+        prof = self.fit.profile
+        if len(prof) == 0 or not prof[0, 0] <= fx <= prof[-1, 0]:
+            return 0.0
+        worse = float(np.interp(math.log(fx), np.log(prof[:, 0]), prof[:, 1]))
+        return worse - min(0.0, float(prof[:, 1].min()))
+
+    def rules_out(self, fx: float) -> bool:
+        """Whether the lines, sure of their focal length or not, say it is not ``fx`` (pixels): ``fx`` is more
+        than RULE_OUT_FACTOR from ``focal_px``, the segments fit a frame at ``fx`` at least RULE_OUT_MARGIN
+        segments' worth worse, the estimate's relative spread is at most RULE_OUT_SD, and the segments'
+        coherence is at least RULE_OUT_COHERENCE. Used to drop a
+        default field of view: an unsure estimate of the lines is then nearer than the default (a cropped
+        or zoomed photo)."""
+        if self.focal_px is None or not self.focal_sd <= RULE_OUT_SD or self.coherence < RULE_OUT_COHERENCE:
+            return False
+        if abs(math.log(fx / self.focal_px)) <= math.log(RULE_OUT_FACTOR):
+            return False
+        return self.focal_worse_at(fx) >= RULE_OUT_MARGIN
 
     def seen_by(self, fx: float, fy: float, cx: float, cy: float) -> LineEstimate:
         """The estimate in the frame of another camera of the same image (pixels): the vanishing points
@@ -117,6 +172,7 @@ class LineEstimate:
             "down_confidence": round(float(self.down_confidence), 4),
             "focal_px": None if self.focal_px is None else round(float(self.focal_px), 2),
             "focal_confidence": round(float(self.focal_confidence), 4),
+            "focal_sd": None if not math.isfinite(self.focal_sd) else round(float(self.focal_sd), 4),
             "manhattan_frame": [[round(float(x), 6) for x in row] for row in self.axes],
             "support": [round(float(s), 4) for s in self.support],
             "vanishing_points": [[round(float(x), 6) for x in v / np.linalg.norm(v)] for v in vps],
@@ -190,10 +246,12 @@ def line_estimate(
     if max(support) < MIN_SUPPORT or sum(s >= MIN_SUPPORT for s in support) < 2:
         down_conf = 0.0  # one family of parallel edges leaves a rotation about it free
 
-    focal, focal_conf = None, 0.0
+    focal, focal_conf, focal_sd = None, 0.0, math.inf
     if not focal_given:
         focal, focal_conf = _focal_confidence(fit)
         focal_conf *= coherence
+        if focal is not None:
+            focal_sd = _focal_spread(fit)
     return LineEstimate(
         down=-up,
         down_confidence=float(down_conf),
@@ -204,6 +262,8 @@ def line_estimate(
         n_segments=int(n_segments),
         rms_px=fit.rms_px,
         fit=fit,
+        focal_sd=focal_sd,
+        coherence=float(coherence),
     )
 
 
@@ -229,3 +289,20 @@ def _focal_confidence(fit: ManhattanFit) -> tuple[float | None, float]:
         * math.exp(-sd / FOCAL_SIGMA)
     )
     return float(fit.focal_px), conf
+
+
+def _focal_spread(fit: ManhattanFit) -> float:
+    """Relative standard deviation of a fit's focal length: the refinement's, and that of the principal
+    point (PRINCIPAL_SIGMA of the long side in each direction) carried through f^2 = -(v1 - c).(v2 - c) for
+    the two vanishing points nearest the centre: moving c by dc moves f^2 by -(v1 - c + v2 - c).dc, so
+    log f by (a1 + a2).dc / (2 f) with a_k = (v_k - c) / f, each vanishing point's offset in focal lengths."""
+    rot = fit.rotation
+    tan = np.hypot(rot[0], rot[1]) / np.maximum(np.abs(rot[2]), 1e-12)
+    pair = np.argsort(tan)[:2]
+    if np.any(np.abs(rot[2, pair]) < 1e-12):
+        return math.inf
+    offsets = rot[:2, pair] / rot[2, pair]  # (2, 2) columns a_k
+    sigma_c = PRINCIPAL_SIGMA * max(fit.size)
+    principal = float(np.linalg.norm(offsets.sum(axis=1))) / 2 * sigma_c / fit.focal_px
+    own = math.sqrt(fit.covariance[3, 3]) if np.isfinite(fit.covariance[3, 3]) else math.inf
+    return math.hypot(own, principal)

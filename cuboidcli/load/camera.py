@@ -3,7 +3,8 @@
 In this order: ``-K`` (``fx,fy,cx,cy`` or a JSON file) or ``--camera`` (a preset, scaled to an image of the
 same aspect ratio), the photo's EXIF, the photo's lines (the focal length of its vanishing points, when
 their ``focal_confidence`` reaches :data:`FOCAL_SURE`), a depth model that predicts the focal length, else
-a default field of view (with a warning). The camera's ``source`` says which; the result records it
+a default field of view (with a warning), unless the lines, unsure, still rule out its focal length: then
+theirs (with a warning). The camera's ``source`` says which; the result records it
 (``input.intrinsics_source``). The metres per depth-PNG unit follow the same order: ``--depth-scale``,
 the intrinsics file, the preset, millimetres.
 """
@@ -71,9 +72,24 @@ def guessed_note(camera: Camera) -> str:
     )
 
 
-def default_for(width: int, height: int, notes: list[str]) -> Camera:
-    """The default field of view's camera, with its warning added to ``notes``."""
+def default_for(width: int, height: int, notes: list[str], lines: LineEstimate | None = None) -> Camera:
+    """The default field of view's camera, with its warning added to ``notes``; unless the photo's
+    ``lines``, unsure of their focal length, still rule out the default's
+    (:meth:`~cuboidcli.geometry.vanishing.LineEstimate.rules_out`: a cropped or zoomed photo): then the
+    lines' focal length, with a warning that says so."""
     camera = default_camera(width, height)
+    if lines is not None and lines.focal_px is not None and lines.rules_out(camera.fx):
+        source = (
+            f"photo lines (focal confidence {lines.focal_confidence:.2f}; they rule out the default "
+            f"{DEFAULT_FOV_DEG:g} degree field of view)"
+        )
+        notes.append(
+            "no camera intrinsics (no -K, --camera or EXIF focal length): the photo's lines are unsure of "
+            f"the focal length (fx = {lines.focal_px:.1f} px, confidence {lines.focal_confidence:.2f}) but "
+            f"fit the default {DEFAULT_FOV_DEG:g} degree field of view (fx = {camera.fx:.1f} px) worse, so "
+            "theirs is used; pass -K fx,fy,cx,cy for exact boxes"
+        )
+        return centred_intrinsics(lines.focal_px, width, height, source)
     notes.append(guessed_note(camera))
     return camera
 

@@ -41,12 +41,17 @@ class DepthEstimate:
 
 
 def depth_from_rgb(
-    rgb: np.ndarray, camera: Camera | None, opts: DepthModelOptions | None = None, depth_scale: float = 0.001
+    rgb: np.ndarray,
+    camera: Camera | None,
+    opts: DepthModelOptions | None = None,
+    depth_scale: float = 0.001,
+    lines: LineEstimate | None = None,
 ) -> DepthEstimate:
     """Metric depth of an RGB image (H, W, 3) uint8 by the depth model of ``opts`` (None: the built-in
     network), loaded once per process. ``camera`` None: a model that predicts the focal length supplies it,
-    else the default field of view is assumed (a note says so). ``depth_scale`` is that of a
-    ``--partial-depth`` PNG. Raises InputError for an unusable model or estimate."""
+    else the default field of view is assumed (a note says so), unless the photo's ``lines`` rule it out
+    (:func:`cuboidcli.load.camera.default_for`). ``depth_scale`` is that of a ``--partial-depth`` PNG.
+    Raises InputError for an unusable model or estimate."""
     from cuboidcli.depth import estimate_depth
 
     opts = opts or DepthModelOptions()
@@ -65,7 +70,7 @@ def depth_from_rgb(
             camera = cameras.from_focal(focal, w, h, f"depth model: {source}")
         else:
             if camera is None:
-                camera = cameras.default_for(w, h, notes)
+                camera = cameras.default_for(w, h, notes, lines)
             depth, source = estimate_depth(estimator, rgb, camera.with_size(w, h), timing)
         dropped = None
         if opts.drop_edges:
@@ -151,13 +156,13 @@ def load_frame(
         camera = camera or cameras.from_lines(lines, w, h)
     source, seconds, extra = "depth map", None, {}
     if depth is None:
-        est = depth_from_rgb(rgb, camera, depth_model, scale)
+        est = depth_from_rgb(rgb, camera, depth_model, scale, lines)
         depth, source, camera, seconds = est.depth_m, est.source, est.camera, est.seconds
         notes += est.notes
         if est.edges_dropped is not None:
             extra["depth_edges_dropped"] = round(float(est.edges_dropped), 6)
     elif camera is None:
-        camera = cameras.default_for(w, h, notes)
+        camera = cameras.default_for(w, h, notes, lines)
     notes += check_inputs(depth, camera, None if rgb is None else rgb.shape)
     meta = input_record(
         depth,

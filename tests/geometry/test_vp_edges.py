@@ -320,6 +320,33 @@ def test_a_level_camera_facing_a_wall_leaves_the_focal_length_ambiguous():
     assert fit.rms_px < 1e-6 and _same_axes(fit.rotation, np.eye(3))
 
 
+def test_the_likelihood_profile_is_zero_at_the_estimate_and_grows_away_from_it():
+    segs, _ = synth_segments(ROT, 500.0, per=(20, 16, 24), noise=0.3, seed=2)
+    fit = mvp.fit_manhattan(segs, SIZE)
+    prof = fit.profile
+    assert prof.shape == (mvp.LIKELIHOOD_STEPS, 2)
+    # log-spaced focal lengths over the field-of-view range of the long side
+    lo, hi = (320.0 / math.tan(math.radians(a / 2)) for a in mvp.FOV_RANGE_DEG[::-1])
+    assert prof[0, 0] == pytest.approx(lo) and prof[-1, 0] == pytest.approx(hi)
+    assert np.allclose(np.diff(np.log(prof[:, 0])), math.log(hi / lo) / (mvp.LIKELIHOOD_STEPS - 1))
+    # segments' worth relative to the fit: about 0 next to it, nothing better, far worse 30 % away
+    near = np.abs(np.log(prof[:, 0] / fit.focal_px)) < 0.025
+    assert near.any() and prof[near, 1].min() < 1.0
+    assert prof[:, 1].min() > -0.1
+    far = np.abs(np.log(prof[:, 0] / 500.0)) > math.log(1.3)
+    assert prof[far, 1].min() > 10.0
+    assert mvp.fit_manhattan(segs, SIZE, fx=500.0).profile.shape == (0, 2)  # a given focal length
+
+
+def test_facing_a_wall_the_likelihood_profile_is_the_priors():
+    # two vanishing points at infinity: every focal length explains the segments alike, but for the prior
+    segs, _ = synth_segments(_axis_rotation(1, 0.0), 500.0, per=(20, 20, 20))
+    fit = mvp.fit_manhattan(segs, SIZE)
+    phi0 = 0.5 / math.tan(math.radians(mvp.PRIOR_FOV_DEG / 2))
+    prior = mvp.PRIOR_WEIGHT * (np.log(fit.profile[:, 0] / 640.0 / phi0) / mvp.PRIOR_SIGMA) ** 2
+    assert np.allclose(fit.profile[:, 1], prior, atol=1e-3)
+
+
 def test_three_segments_give_their_frame():
     segs, _ = synth_segments(ROT, 500.0, per=(2, 1, 0))
     lines = vm.Segments(segs, CX, CY, 640.0)
@@ -528,6 +555,67 @@ def test_the_focal_confidence_needs_the_two_central_vanishing_points():
     assert given.focal_px is None and given.focal_confidence == 0.0
 
 
+def test_the_focal_spread_carries_the_principal_point_through_the_two_central_vanishing_points():
+    f, sd_fit = 500.0, 0.02
+    fit = dataclasses.replace(
+        _fit(ROT, [0.3, 0.3, 0.3], np.diag([0.0, 0.0, 0.0, sd_fit**2]), focal=f), size=SIZE
+    )
+    tan = np.hypot(ROT[0], ROT[1]) / np.abs(ROT[2])
+    v1, v2 = (f * ROT[:2, k] / ROT[2, k] + (CX, CY) for k in np.argsort(tan)[:2])
+
+    def log_focal(c):  # orthogonal directions: f^2 = -(v1 - c).(v2 - c)
+        return 0.5 * math.log(-float(np.dot(v1 - c, v2 - c)))
+
+    c0, eps = np.array([CX, CY]), 1e-3
+    grad = [(log_focal(c0 + eps * e) - log_focal(c0 - eps * e)) / (2 * eps) for e in np.eye(2)]
+    assert log_focal(c0) == pytest.approx(math.log(f))
+    sigma_c = vanishing.PRINCIPAL_SIGMA * 640
+    expected = math.hypot(sd_fit, float(np.linalg.norm(grad)) * sigma_c)
+    assert vanishing._focal_spread(fit) == pytest.approx(expected, rel=1e-5)
+    assert expected > 1.3 * sd_fit  # the principal point's share is not negligible here
+    # the far vanishing point does not enter; one of the central two at infinity: no spread
+    assert vanishing._focal_spread(dataclasses.replace(fit, size=(640, 100))) == pytest.approx(expected)
+    wall = dataclasses.replace(fit, rotation=_axis_rotation(1, 0.0))
+    assert vanishing._focal_spread(wall) == math.inf
+    # recorded by line_estimate with the estimate, and not for a given focal length
+    assert vanishing.line_estimate(fit, 400).focal_sd == pytest.approx(expected, rel=1e-5)
+    assert vanishing.line_estimate(fit, 400, focal_given=True).focal_sd == math.inf
+
+
+def _profiled(worse, focal_sd=0.05, focal=500.0):
+    """A line estimate at ``focal`` px whose likelihood profile is worse(fx) segments' worth."""
+    fx = 500.0 * 1.05 ** np.arange(-19.0, 20.0)  # 198 to 1264 px
+    fit = dataclasses.replace(_fit(ROT, [0.3, 0.3, 0.3], focal=focal), profile=np.c_[fx, worse(fx)])
+    return dataclasses.replace(vanishing.line_estimate(fit, 400), focal_sd=focal_sd)
+
+
+def test_an_unsure_estimate_rules_out_a_focal_length_the_segments_fit_worse():
+    def parabola(fx):  # 2 segments' worth 10 % away
+        return 2.0 * (np.log(fx / 500.0) / math.log(1.1)) ** 2
+
+    est = _profiled(parabola)  # rules_out does not ask the focal confidence: the camera asks it first
+    assert est.focal_worse_at(500.0) == pytest.approx(0.0, abs=0.01)
+    assert est.focal_worse_at(392.0) == pytest.approx(parabola(392.0), rel=0.02)
+    assert est.focal_worse_at(150.0) == 0.0 and est.focal_worse_at(1500.0) == 0.0  # beyond the profile
+    assert est.rules_out(392.0) and est.rules_out(600.0)
+    assert not est.rules_out(500.0 * 1.09)  # within RULE_OUT_FACTOR: as good as the estimate
+    assert not est.rules_out(150.0)  # the profile says nothing there
+    # measured from the best the profile found, not from the estimate
+    shifted = _profiled(lambda fx: parabola(fx) - 3.0)
+    assert shifted.focal_worse_at(500.0) == pytest.approx(0.0, abs=0.01)
+    # too flat a profile, too wide a spread, or no estimate: nothing is ruled out
+    flat = _profiled(lambda fx: np.minimum(parabola(fx), 0.9 * vanishing.RULE_OUT_MARGIN))
+    assert not flat.rules_out(392.0)
+    assert _profiled(parabola, focal_sd=vanishing.RULE_OUT_SD).rules_out(392.0)
+    assert not _profiled(parabola, focal_sd=1.01 * vanishing.RULE_OUT_SD).rules_out(392.0)
+    assert not _profiled(parabola, focal_sd=math.inf).rules_out(392.0)
+    assert est.coherence == 1.0  # 90 % of the segments' length on three directions of 400 segments
+    threshold = vanishing.RULE_OUT_COHERENCE
+    assert dataclasses.replace(est, coherence=threshold).rules_out(392.0)
+    assert not dataclasses.replace(est, coherence=0.99 * threshold).rules_out(392.0)
+    assert not dataclasses.replace(est, focal_px=None).rules_out(392.0)
+
+
 def test_seen_by_another_camera_keeps_the_vanishing_points_in_the_image():
     rot = _axis_rotation(0, -15.0) @ _axis_rotation(1, 20.0)
     est = vanishing.line_estimate(_fit(rot, [0.3, 0.3, 0.3]), 100)
@@ -688,6 +776,8 @@ def test_the_record_keeps_micro_radians_of_directions_and_four_digits_of_confide
     assert d["down"] == [round(float(x), 6) for x in est.down] and d["down"] != [float(x) for x in est.down]
     assert d["down_confidence"] == 0.4568
     assert d["focal_px"] == 512.35 and d["focal_confidence"] == 0.8765 and d["rms_px"] == 0.123
+    assert dataclasses.replace(est, focal_sd=0.0456789).to_dict()["focal_sd"] == 0.0457
+    assert dataclasses.replace(est, focal_sd=math.inf).to_dict()["focal_sd"] is None  # JSON has no inf
     assert d["manhattan_frame"] == [[round(float(x), 6) for x in row] for row in est.axes]
     assert d["support"] == [round(s, 4) for s in est.support] and d["support"][0] == 0.2877
     vps = fit.vanishing_points()

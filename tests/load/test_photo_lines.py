@@ -73,14 +73,17 @@ def test_the_camera_comes_from_k_then_exif_then_the_lines_then_the_default(room)
 
 
 def test_lines_that_do_not_give_the_camera_are_seen_by_the_one_that_does(room, monkeypatch):
-    """Unsure of the focal length (here: never sure), the default field of view is the camera; the lines'
-    vanishing points stay where they are in the image, their directions are the default camera's."""
+    """Unsure of the focal length (here: never sure, and ruling nothing out), the default field of view is
+    the camera; the lines' vanishing points stay where they are in the image, their directions are the
+    default camera's."""
+    from cuboidcli.geometry import vanishing
     from cuboidcli.load import camera as cameras
 
     folder = room[0]
     img, true_down = render_room(350.0, -30.0, 0.0, 35.0, seed=350)  # wide: far from the default's 522 px
     cv2.imwrite(str(folder / "wide_rgb.png"), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
     monkeypatch.setattr(cameras, "FOCAL_SURE", 1.1)
+    monkeypatch.setattr(vanishing, "RULE_OUT_MARGIN", math.inf)
     frame = load_frame(folder / "room_depth.png", folder / "wide_rgb.png")
     cam = frame.camera
     assert frame.meta["intrinsics_source"].startswith("default:") and cam.fx == pytest.approx(522.2, abs=0.1)
@@ -93,6 +96,32 @@ def test_lines_that_do_not_give_the_camera_are_seen_by_the_one_that_does(room, m
     assert frame.lines.focal_px == pytest.approx(350.0, rel=0.05)  # the lines' own estimate, recorded
     assert np.allclose(frame.lines.axes[:, 0], -frame.lines.down)
     assert np.allclose(frame.lines.axes.T @ frame.lines.axes, np.eye(3), atol=1e-9)
+
+
+def test_unsure_lines_that_rule_out_the_default_field_of_view_give_the_camera(room, monkeypatch):
+    """Unsure of the focal length but sure it is not the default's (a wide photo: 350 px against 522),
+    the lines' estimate is the camera, with one warning that says so; without lines, or with an estimate
+    too spread to rule anything out, the default stays."""
+    from cuboidcli.geometry import vanishing
+    from cuboidcli.load import camera as cameras
+
+    folder = room[0]
+    img, _ = render_room(350.0, -30.0, 0.0, 35.0, seed=350)
+    cv2.imwrite(str(folder / "wide2_rgb.png"), cv2.cvtColor(img, cv2.COLOR_RGB2BGR))
+    monkeypatch.setattr(cameras, "FOCAL_SURE", 1.1)  # never sure
+    frame = load_frame(folder / "room_depth.png", folder / "wide2_rgb.png")
+    source = frame.meta["intrinsics_source"]
+    assert source.startswith("photo lines (focal confidence ") and "rule out the default 63 degree" in source
+    assert frame.camera.fx == pytest.approx(350.0, rel=0.05) and frame.camera.cx == 319.5
+    assert frame.lines.rules_out(522.2) and frame.lines.focal_worse_at(522.2) >= vanishing.RULE_OUT_MARGIN
+    assert len(frame.notes) == 1 and "worse" in frame.notes[0] and "-K" in frame.notes[0]
+    assert frame.meta["lines"]["focal_px"] == pytest.approx(frame.camera.fx, abs=0.01)
+    notes = []
+    kept = cameras.default_for(640, 480, notes, None)
+    assert kept.source.startswith("default: 63 degree") and len(notes) == 1
+    monkeypatch.setattr(vanishing, "RULE_OUT_SD", 0.0)  # an estimate this spread rules nothing out
+    notes = []
+    assert cameras.default_for(640, 480, notes, frame.lines).source.startswith("default: 63 degree")
 
 
 def test_the_lines_come_before_a_depth_models_focal_length(room, monkeypatch):
