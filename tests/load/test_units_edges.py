@@ -30,8 +30,14 @@ def test_the_size_limits_hold_at_their_boundaries():
         lambda: check_cloud(cloud_of_diagonal(MIN_DIAGONAL_M * 0.999), "m"), "50.0 mm across", "too small"
     )
     # a small box is said in millimetres with one decimal, a large one in whole metres
-    refused(lambda: check_cloud(cloud_of_diagonal(0.0123), "m"), "room.npy is 12.3 mm across with --unit m")
+    refused(lambda: check_cloud(cloud_of_diagonal(0.012449), "m"), "room.npy is 12.4 mm across with --unit m")
     refused(lambda: check_cloud(cloud_of_diagonal(1234.4), "cm"), "room.npy is 1234 m across with --unit cm")
+
+
+def test_the_size_limits_are_inclusive():
+    for diagonal in (MIN_DIAGONAL_M, MAX_DIAGONAL_M):  # a segment along x: its diagonal is exact
+        points = np.c_[np.linspace(0.0, diagonal, MIN_POINTS), np.zeros((MIN_POINTS, 2))]
+        assert check_cloud(PointCloud(points, meta={"path": "x.npy"}), "m").meta["diagonal_m"] == diagonal
 
 
 def test_the_recorded_diagonal_has_four_decimals():
@@ -74,7 +80,7 @@ def test_normals_a_little_off_unit_length_are_dropped_with_a_warning():
     unit = np.tile([0.0, 0.0, 1.0], (MIN_POINTS, 1))
     kept = check_cloud(cloud_of_diagonal(4.0, normals=unit * (1 + 5e-4)), "m")
     assert kept.normals is not None and kept.warnings == []
-    for scale in (0.98, 1.002, 1.02):  # 0.98: 2 % short, which squaring the error would let through
+    for scale in (0.98, 1.0012, 1.02):  # 0.98: 2 % short, which squaring the error would let through
         normals = unit.copy()
         normals[:7] *= scale
         cloud = check_cloud(cloud_of_diagonal(4.0, normals=normals), "m")
