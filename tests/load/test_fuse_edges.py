@@ -140,3 +140,14 @@ def test_voxel_indices_beyond_the_key_range_are_refused(tmp_path):
     # tiny voxels put every depth out of the key range while some x and y stay in it: still refused
     near_far = flat_sequence(tmp_path / "nf", 2.0, [pose()])
     refused(lambda: fuse_sequence(near_far, voxel_m=1e-6, unit_check=False), "are the poses in metres?")
+
+
+def test_a_voxel_of_one_coloured_pixel_keeps_its_colour(tmp_path):
+    seq = flat_sequence(tmp_path, 2.0, [pose()])
+    cloud = fuse_sequence(seq, voxel_m=0.005)  # a pixel is 3.3 cm wide at 2 m: one pixel per voxel
+    assert len(cloud.points) == CAM.width * CAM.height and (cloud.colors == COLOURS[0]).all()
+
+
+def test_a_depth_limit_under_a_metre(tmp_path):
+    near = flat_sequence(tmp_path, 0.4, [pose()])
+    assert len(fuse_sequence(near, max_depth_m=0.5, unit_check=False).points) > 100
