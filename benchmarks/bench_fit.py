@@ -10,11 +10,15 @@ the sampler are built once, before the first frame (weights loading is not timed
     python benchmarks/bench_fit.py [--frames 5] [--fast] [--no-refine] [--sampler sequential]
         [--solver numerical|neural] [--weights PATH] [--hypotheses 4096] [--seed 0]
         [--local-fraction 0.75] [--max-batches 4] [--align free|gravity|manhattan]
-        [--device cpu|cuda|auto] [--log benchmarks/logs/fit_cuda.txt]
+        [--device cpu|cuda|auto] [--log benchmarks/logs/fit_cuda.txt] [--open3d]
 
 The first lines say where it ran: the date, the commit (with "+changes" for a working tree that differs
 from it), the device (the GPU's name on cuda), torch and the CPU. ``--log`` writes everything printed to
 that file as well, for the figures quoted in the documentation.
+
+--open3d also times, on each frame, the pipeline a user would assemble from Open3D
+(:func:`cuboidcli.evaluation.baseline.planes_and_clusters`: RANSAC planes, then DBSCAN boxes, on all the
+frame's valid pixels back-projected, up = the camera's -y) and prints the ratio of the median totals.
 
 --weights: a folder (solver_v1.pt / sampler_v2.pt inside) or a .pt file; it goes to the neural solver and
 the learned sampler (the other solvers and samplers have no weights). None = the shipped weights.
@@ -50,6 +54,16 @@ def frames(n_synth: int):
             if (shared / sub).is_dir():
                 for f in list_frames(shared / sub):
                     yield f"{sub}/{f.name}", f.depth_m(), f.camera
+
+
+def time_open3d(depth: np.ndarray, cam, seed: int) -> float:
+    """Seconds of the Open3D planes + DBSCAN boxes pipeline on the frame's valid pixels."""
+    from cuboidcli.evaluation.baseline import planes_and_clusters
+
+    points = cam.backproject_grid(depth, 1)[depth > 0]
+    t = time.perf_counter()
+    planes_and_clusters(points, up=np.array([0.0, -1.0, 0.0]), seed=seed)
+    return time.perf_counter() - t
 
 
 class Tee:
@@ -107,6 +121,7 @@ def main() -> None:
     ap.add_argument("--align", default=None, help="free | gravity | manhattan (default: the library's)")
     ap.add_argument("--device", default="cpu", help="cpu | cuda | auto (cuda when there is one)")
     ap.add_argument("--log", type=Path, default=None, help="also write the output to this file")
+    ap.add_argument("--open3d", action="store_true", help="also time the Open3D planes + DBSCAN pipeline")
     args = ap.parse_args()
     if args.log is not None:
         args.log.parent.mkdir(parents=True, exist_ok=True)
@@ -161,20 +176,30 @@ def main() -> None:
     )
     stages = ("prepare", "gravity", "sample", "solve", "score", "refine", "align", "update", "total")
     stages += ("assign",)
-    print(f"{'frame':28s} {'pts':>5s} {'|M|':>3s} {'steps':>5s} " + " ".join(f"{s:>7s}" for s in stages))
-    rows = []
+    header = f"{'frame':28s} {'pts':>5s} {'|M|':>3s} {'steps':>5s} " + " ".join(f"{s:>7s}" for s in stages)
+    print(header + ("  open3d" if args.open3d else ""))
+    rows, open3d_s = [], []
     for name, depth, cam in frames(args.frames):
         cubs, info = fit_depth(depth, cam, cfg, solver=solver, sampler=sampler)
         t = info.timing_s
         rows.append([t.get(s, 0.0) for s in stages])
+        extra = ""
+        if args.open3d:
+            open3d_s.append(time_open3d(depth, cam, args.seed))
+            extra = f" {open3d_s[-1]:7.3f}"
         print(
             f"{name:28s} {info.n_points:5d} {len(cubs):3d} {info.iterations:5d} "
             + " ".join(f"{t.get(s, 0.0):7.3f}" for s in stages)
+            + extra
         )
     mean = np.mean(rows, axis=0)
     print(f"{'mean':28s} {'':5s} {'':3s} {'':5s} " + " ".join(f"{v:7.3f}" for v in mean))
     median = np.median(rows, axis=0)
     print(f"{'median':28s} {'':5s} {'':3s} {'':5s} " + " ".join(f"{v:7.3f}" for v in median))
+    if open3d_s:
+        ours = float(median[stages.index("total")])
+        theirs = float(np.median(open3d_s))
+        print(f"median total {ours:.3f} s, Open3D planes + DBSCAN {theirs:.3f} s: ratio {ours / theirs:.2f}")
     peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
     print(f"peak RSS: {peak_mb:.0f} MB")
 
