@@ -9,7 +9,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cuboidcli.geometry.cloud import ROOM_HEIGHT_M, TIE, floor_scores, is_camera_view, room_up, voxel_groups
+from cuboidcli.geometry.cloud import (
+    ROOM_HEIGHT_M,
+    TIE,
+    _cone,
+    floor_normal,
+    floor_scores,
+    is_camera_view,
+    room_up,
+    settle_axis,
+    voxel_groups,
+)
 
 N = 10_000
 X, Y, Z = np.eye(3)
@@ -138,3 +148,56 @@ def test_a_camera_view_has_four_in_five_points_in_front():
     assert not is_camera_view(camera_view(70, 30, 0.12))  # 70 %: surfaces behind each other
     assert is_camera_view(camera_view(70, 30, 0.08))  # within 10 cm of the front: one surface's noise
     assert not is_camera_view(camera_view(80, 0, 0.0) - [0.0, 0.0, 1.95])  # points near or behind the camera
+
+
+def tilted(angle_deg: float) -> np.ndarray:
+    """Z turned by ``angle_deg`` about x."""
+    a = np.deg2rad(angle_deg)
+    return np.array([0.0, -np.sin(a), np.cos(a)])
+
+
+def test_up_becomes_the_normal_of_its_floor():
+    # a floor tilted 4 degrees about x under clutter and walls, the room 1 m above the origin: the floor's
+    # normal is up, not the Manhattan axis; the same room upside down has it pointing down
+    rng = np.random.default_rng(5)
+    pts, normals = room(floor=1500, wall=400)
+    n = tilted(4.0)
+    pts[:1500, 2] = -(pts[:1500, 1] * n[1]) / n[2] + rng.normal(0, 0.003, 1500)  # the plane n . p = 0
+    normals[:1500] = n
+    pts[:, 2] += 1.0
+    for sign in (1.0, -1.0):
+        flip = np.array([1.0, 1.0, sign])
+        up = floor_normal(pts * flip, normals * flip, sign * Z)
+        assert np.degrees(np.arccos(np.clip(up @ (n * flip), -1, 1))) < 0.3
+
+
+def test_without_a_floor_up_stays_as_it_is():
+    pts, normals = room(floor=15, wall=400)  # 15 points facing up: fewer than 20
+    assert np.array_equal(floor_normal(pts, normals, tilted(3.0)), tilted(3.0))
+
+
+def test_an_axis_settles_on_twenty_or_more_surfaces_of_either_sign():
+    axis = tilted(5.0)
+    for count, moved in ((19, False), (20, True)):
+        normals = np.tile(axis, (count, 1))
+        normals[::2] *= -1  # PCA normals come with either sign
+        out = settle_axis(normals, Z)
+        assert np.allclose(out, axis if moved else Z, atol=1e-12)
+    # a few normals 22 degrees to the other side pull the first, widest cone; the narrower ones drop them
+    normals = np.concatenate([np.tile(axis, (40, 1)), np.tile(tilted(-22.0), (10, 1))])
+    assert np.allclose(settle_axis(normals, Z), axis, atol=1e-12)
+
+
+def test_a_cone_is_the_normal_and_four_directions_at_its_angle():
+    rng = np.random.default_rng(6)
+    n = rng.normal(size=(50, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    n[0] = [1.0, 0.0, 0.0]  # along the first helper axis
+    for angle in (30.0, 10.0):
+        dirs = _cone(n, angle)
+        assert dirs.shape == (50, 5, 3) and np.allclose(dirs[:, 0], n)
+        assert np.allclose(np.linalg.norm(dirs, axis=2), 1.0)
+        assert np.allclose(np.einsum("nkj,nj->nk", dirs[:, 1:], n), np.cos(np.deg2rad(angle)))
+        tilt = dirs[:, 1:] - np.cos(np.deg2rad(angle)) * n[:, None]
+        assert np.allclose(tilt[:, 0], -tilt[:, 1]) and np.allclose(tilt[:, 2], -tilt[:, 3])
+        assert np.allclose(np.einsum("nj,nj->n", tilt[:, 0], tilt[:, 2]), 0.0)  # two perpendicular tilts
