@@ -201,3 +201,30 @@ def test_a_cone_is_the_normal_and_four_directions_at_its_angle():
         tilt = dirs[:, 1:] - np.cos(np.deg2rad(angle)) * n[:, None]
         assert np.allclose(tilt[:, 0], -tilt[:, 1]) and np.allclose(tilt[:, 2], -tilt[:, 3])
         assert np.allclose(np.einsum("nj,nj->n", tilt[:, 0], tilt[:, 2]), 0.0)  # two perpendicular tilts
+
+
+def test_the_axes_start_with_up_on_every_path():
+    pts, normals = room(floor=600, wall=300)
+    for up in (
+        room_up(pts, normals, hint=Y),  # estimated
+        room_up(*room(floor=400, wall=200), hint=Y),  # the hint, few surfaces face up
+        room_up(pts, normals, hint=Z, given=X),  # given
+    ):
+        assert up.axes is not None and np.allclose(up.axes[:, 0], up.up, atol=1e-9), up.source
+
+
+def test_the_hint_wins_over_few_surfaces_from_more_than_45_degrees():
+    hint = np.array([0.0, np.sin(np.deg2rad(60.0)), np.cos(np.deg2rad(60.0))])  # 60 degrees from up
+    far = room_up(*room(floor=400, wall=200), hint=hint)
+    assert far.source == "hint" and np.allclose(far.up, hint)
+    hint = np.array([0.0, np.sin(np.deg2rad(40.0)), np.cos(np.deg2rad(40.0))])  # 40 degrees: the cloud's
+    near = room_up(*room(floor=400, wall=200), hint=hint)
+    assert near.source == "estimated" and along(near.up, Z)
+
+
+def test_without_a_manhattan_frame_the_hint_is_up():
+    pts, _ = room()
+    normals = np.tile(Z, (len(pts), 1))  # one family of surfaces: no frame
+    up = room_up(pts, normals, hint=Y)
+    assert up.source == "hint" and up.axes is None and np.allclose(up.up, Y) and up.confidence == 0.0
+    assert "no two perpendicular surfaces" in up.warning

@@ -74,3 +74,14 @@ def test_a_surface_facing_another_close_by_is_seen_from_its_other_side():
     out = free_side_normals(pts, normals, INSIDE, 0.1)
     centre = len(room) + int(np.argmin(np.linalg.norm(first - [2.0, 2.0, 1.5], axis=1)))
     assert out[centre].tolist() == [-1.0, 0.0, 0.0]
+
+
+def test_rays_stop_at_occupied_cells_on_every_axis_and_side():
+    occupied = np.zeros((20, 20, 20), dtype=np.bool_)
+    occupied[0], occupied[:, 0], occupied[:, :, 0] = True, True, True  # walls in the first cell of each axis
+    point = np.array([[1.05, 1.05, 1.05]])
+    dirs = -np.eye(3)[None]  # towards each of those walls
+    out = np.empty((1, 3))
+    _free_lengths(point, dirs, occupied, np.zeros(3), 0.1, 0.2, 2.0, out)
+    # half-cell steps from 0.2 m: at t = 0.95 the ray is at 0.1 m, which rounds into the first cell
+    assert out[0].tolist() == pytest.approx([0.95, 0.95, 0.95])
