@@ -34,7 +34,7 @@ def minimal_sets(n_sets: int, set_size: int, seed: int):
 
     cam = Camera.preset("nyu")
     scene = generate_scene((2024, 0), cam)
-    pts = prepare_points(scene.depth_m, cam, 8).points.double()
+    pts = prepare_points(scene.depth_m, cam, 8).as_tensors().points.double()
     gen = torch.Generator().manual_seed(seed)
     idx = torch.randint(0, pts.shape[0], (n_sets, set_size), generator=gen)
     return pts[idx].contiguous(), int(pts.shape[0])

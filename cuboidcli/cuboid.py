@@ -3,7 +3,8 @@
 A cuboid is (centre, half-sizes, rotation) in OpenCV camera coordinates, metres. The columns of
 ``rotation`` are the cuboid's local axes: a local point ``p`` maps to ``rotation @ p + center`` and the
 box spans ``[-half_size, +half_size]`` along its local axes (the paper's (a_x, a_y, a_z, R, t)).
-Batches travel between modules as tensors: centres (..., 3), half-sizes (..., 3), rotations (..., 3, 3).
+Batches travel between modules as arrays (numpy, or tensors where torch computes): centres (..., 3),
+half-sizes (..., 3), rotations (..., 3, 3).
 """
 
 from __future__ import annotations
@@ -63,11 +64,9 @@ class Cuboid:
 
     @property
     def quat_wxyz(self) -> np.ndarray:
-        import torch  # torch is loaded when a cuboid is first written, not when the command line starts
-
         from cuboidcli.geometry.rotations import matrix_to_quaternion
 
-        return matrix_to_quaternion(torch.from_numpy(self.rotation)).numpy()
+        return matrix_to_quaternion(self.rotation)
 
     @classmethod
     def from_quat(cls, center, half_size, quat_wxyz, **kw) -> Cuboid:
@@ -123,11 +122,9 @@ class Cuboid:
 
 def _quat_matrix(quat_wxyz) -> np.ndarray:
     """The (3, 3) rotation of a unit quaternion (w, x, y, z)."""
-    import torch
-
     from cuboidcli.geometry.rotations import quaternion_to_matrix
 
-    return quaternion_to_matrix(torch.as_tensor(np.asarray(quat_wxyz, dtype=np.float64))).numpy()
+    return quaternion_to_matrix(np.asarray(quat_wxyz, dtype=np.float64))
 
 
 def stack_cuboids(cuboids: list[Cuboid], dtype=None, device="cpu") -> tuple:

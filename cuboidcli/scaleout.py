@@ -55,10 +55,17 @@ class Summary:
 
 
 def worker_init() -> None:
-    """One thread per worker process: N processes share N cores (the results do not depend on it)."""
-    import torch
+    """One thread per worker process: N processes share N cores (the results do not depend on it). A
+    worker that fits frames on numpy arrays never imports torch; one that does (a room, a network) reads
+    its thread count from OMP_NUM_THREADS when it first imports it."""
+    import os
+    import sys
 
-    torch.set_num_threads(1)
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(1)
+    else:
+        os.environ["OMP_NUM_THREADS"] = "1"
     try:
         import numba
 

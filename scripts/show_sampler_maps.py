@@ -31,7 +31,7 @@ def main() -> None:
     args = ap.parse_args()
     frame = next(f for f in list_frames(args.dataset) if f.name == args.frame)
     depth = frame.depth_m()
-    prep = prepare_points(depth, frame.camera, 8)
+    prep = prepare_points(depth, frame.camera, 8).as_tensors()  # the learned sampler weighs tensors
     sampler = make_sampler("learned", args.weights)
     state = torch.zeros(prep.points.shape[0])
     if args.after > 0:

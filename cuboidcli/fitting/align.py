@@ -14,8 +14,9 @@ from cuboidcli.fitting.box import Box, Scored, StepContext, thin_axis
 from cuboidcli.fitting.refit import plane_sweep, refit_box
 from cuboidcli.fitting.shell import is_room_slab
 from cuboidcli.fitting.winner import grow_cuboid, shrink_cuboid
+from cuboidcli.geometry.arrays import count, indices, numpy64
 from cuboidcli.geometry.gravity import level_frame, manhattan_rotation, upright_rotation
-from cuboidcli.geometry.kernels import INLIER_CUT
+from cuboidcli.geometry.inlier import INLIER_CUT
 
 #: An aligned winner replaces the free one only while it keeps this share of the free one's gain: a box
 #: that is really tilted (a leaning board, a wrong gravity) stays free rather than fit badly.
@@ -79,14 +80,14 @@ def align_winner(scored: Scored, ctx: StepContext, alignment: Alignment) -> Scor
     """
     config, gain = ctx.config, scored.gain
     inl = ctx.newly_explained(scored.values)
-    if inl.numel() < config.min_set:
-        inl = (scored.values >= INLIER_CUT).nonzero().squeeze(1)
-    if inl.numel() < config.min_set:
+    if count(inl) < config.min_set:
+        inl = indices(scored.values >= INLIER_CUT)
+    if count(inl) < config.min_set:
         return replace(scored, kind="free")
-    p = ctx.points[inl].double().cpu().numpy()
+    p = numpy64(ctx.points[inl])
     c0, a0, r0 = scored.box.numpy()
 
-    all_pts = ctx.points.double().cpu().numpy()
+    all_pts = numpy64(ctx.points)
     room = is_room_slab(all_pts, c0, a0, r0, alignment.viewpoint, alignment.up)
     # the room's shell stands on the room's axes even where bent depth fits a tilted plane a little better
     keep = ROOM_KEEP if room else ALIGN_KEEP
@@ -106,7 +107,7 @@ def align_winner(scored: Scored, ctx: StepContext, alignment: Alignment) -> Scor
         if room and best.gain < keep * gain:
             # a wall in bent far depth: the plane most of its points lie on; a doorway or a mirror that
             # the turned wall now covers: its edges trimmed
-            on = plane_sweep(all_pts, ctx.state.cpu().numpy(), p, rot, _thin_of(rot, r0, a0))
+            on = plane_sweep(all_pts, numpy64(ctx.state), p, rot, _thin_of(rot, r0, a0))
             if on.shape[0] >= config.min_set:
                 alt = place(on, rot, kind)
                 if alt.gain > placed.gain:

@@ -3,19 +3,19 @@
 from __future__ import annotations
 
 import numpy as np
-import torch
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.backend import ScoringBackend, backend_for
 from cuboidcli.fitting.scoring import ScoreParams
-from cuboidcli.geometry.kernels import INLIER_CUT
+from cuboidcli.geometry.arrays import device_of, float64, like, numpy64
+from cuboidcli.geometry.inlier import INLIER_CUT
 
 NONE = -1
 OCCLUDED = -2
 
 
 def assign_points(
-    points: np.ndarray | torch.Tensor,
+    points,
     cuboids: list[Cuboid],
     sp: ScoreParams | None = None,
     backend: ScoringBackend | None = None,
@@ -27,17 +27,17 @@ def assign_points(
     else -1. ``sp``: the inlier function's parameters (None: the defaults, the paper's).
     The values come from ``backend`` (None: the default backend of the points' device, numba on the CPU).
     """
-    pts = torch.as_tensor(points, dtype=torch.float64).reshape(-1, 3)
+    pts = float64(points).reshape(-1, 3)
     labels = np.full(pts.shape[0], NONE, dtype=np.int32)
     if not cuboids or pts.shape[0] == 0:
         return labels
-    backend = backend or backend_for("auto", pts.device)
+    backend = backend or backend_for("auto", device_of(pts))
     sp = sp or ScoreParams()
     boxes = (
-        torch.from_numpy(np.stack([getattr(b, name) for b in cuboids]).astype(np.float64)).to(pts.device)
+        like(np.stack([getattr(b, name) for b in cuboids]).astype(np.float64), pts)
         for name in ("center", "half_size", "rotation")
     )
-    vals = backend.values(pts, *boxes, sp).cpu().numpy()  # (M, N)
+    vals = numpy64(backend.values(pts, *boxes, sp))  # (M, N)
     lo = vals.min(0)
     best = vals.argmax(0)
     hi = vals.max(0)

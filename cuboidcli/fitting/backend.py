@@ -24,15 +24,19 @@ from __future__ import annotations
 
 import operator
 from abc import ABC, abstractmethod
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
-from torch import Tensor
 
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.refine import refine_cuboid, refine_cuboid_fused
 from cuboidcli.fitting.scoring import ScoreParams, gains_torch, values_torch
+from cuboidcli.geometry.arrays import as_kind, is_tensor, numpy64, on_cpu_as, randperm
 from cuboidcli.geometry.backends import resolve_backend
+
+if TYPE_CHECKING:
+    import torch
+    from torch import Tensor
 
 #: Exact selection: candidates nominated on a random eighth of the points whose best exact gain becomes
 #: the pruning threshold (backends that prune).
@@ -51,8 +55,9 @@ NOMINATION_BLOCK = 256
 class ScoringBackend(ABC):
     """Values, gains, selection and winner refinement on one kind of kernels.
 
-    Tensors in: points (N, 3), centers (H, 3), half_sizes (H, 3), rotations (H, 3, 3), state (N,), all on
-    the points' device, any float dtype."""
+    Arrays in: points (N, 3), centers (H, 3), half_sizes (H, 3), rotations (H, 3, 3), state (N,), all on
+    the points' device, any float dtype; tensors, or numpy arrays for a backend that takes them (the
+    numba one). What it gives back is of the points' kind."""
 
     name: str
     """"numba" or "torch"."""
@@ -106,12 +111,12 @@ class ScoringBackend(ABC):
         rotations: Tensor,
         state: Tensor,
         sp: ScoreParams,
-        generator: torch.Generator,
+        generator,
         prescore_points: int = 0,
         rescore_top: int = 64,
     ) -> tuple[int, float, Tensor]:
-        """Index and exact gain of the best hypothesis, plus the gains (H,) float64 on the CPU, -inf where
-        not computed.
+        """Index and exact gain of the best hypothesis, plus the gains (H,) float64 on the CPU (of the
+        points' kind), -inf where not computed.
 
         ``prescore_points == 0`` (default) is exact: every hypothesis is scored on all points and the
         selected one is the true argmax. A backend that prunes first scores all hypotheses on a random
@@ -120,7 +125,7 @@ class ScoringBackend(ABC):
         fast path: all hypotheses are scored on that many random points and only the best
         ``rescore_top`` are scored on all points.
 
-        The random subset is drawn from ``generator`` (a CPU generator) on every backend and in both modes,
+        The random subset is drawn from ``generator`` (the fit's) on every backend and in both modes,
         also where it is not used, so a seed draws the same random numbers whichever backend scores.
         Points bound to their cells (:meth:`bind_cells`) are nominated on a regular eighth of their grid
         instead (:meth:`_nominate`); the random subset is still drawn.
@@ -131,7 +136,7 @@ class ScoringBackend(ABC):
         if n_sub >= n:
             g = self.gains(points, centers, half_sizes, rotations, state, sp, cells=cells)
         else:
-            sub = torch.randperm(n, generator=generator)[:n_sub].to(points.device)
+            sub = as_kind(randperm(n, generator)[:n_sub], points)
             if prescore_points > 0 or self.prunes:
                 k = rescore_top if prescore_points > 0 else NOMINATED
                 if prescore_points == 0 and cells is not None:
@@ -139,13 +144,13 @@ class ScoringBackend(ABC):
                 else:
                     g_sub = self.gains(points[sub], centers, half_sizes, rotations, state[sub], sp)
                     top = np.argsort(-g_sub, kind="stable")[:k]
-                top = torch.from_numpy(top).to(centers.device)
+                top = as_kind(top, centers)
                 g_top = self.gains(
                     points, centers[top], half_sizes[top], rotations[top], state, sp, cells=cells
                 )
             if prescore_points > 0:
                 g = np.full(centers.shape[0], -np.inf)
-                g[top.cpu().numpy()] = g_top
+                g[as_kind(top, g)] = g_top
             elif self.prunes:
                 threshold = float(g_top.max()) - PRUNE_MARGIN
                 g = self.gains(
@@ -154,7 +159,7 @@ class ScoringBackend(ABC):
             else:
                 g = self.gains(points, centers, half_sizes, rotations, state, sp, cells=cells)
         best = int(np.argmax(g))
-        return best, float(g[best]), torch.from_numpy(g)
+        return best, float(g[best]), on_cpu_as(g, points)
 
     def bind_cells(self, points: Tensor, cells) -> None:
         """Tell the backend the :class:`~cuboidcli.geometry.fused.ImageCells` of ``points`` (all the points of
@@ -163,7 +168,7 @@ class ScoringBackend(ABC):
         self._bound = (points, cells)
 
     def cells_of(self, points: Tensor):
-        """The cells bound to ``points`` (this very tensor), or None."""
+        """The cells bound to ``points`` (this very array), or None."""
         bound = getattr(self, "_bound", None)
         return bound[1] if bound is not None and bound[0] is points else None
 
@@ -190,7 +195,7 @@ class ScoringBackend(ABC):
 
 class NumbaBackend(ScoringBackend):
     """The fused numba loops of :mod:`cuboidcli.geometry.fused` and :mod:`cuboidcli.geometry.adam`:
-    no (H, N, 6) tensors, provable pruning of hypotheses that cannot win. CPU tensors only."""
+    no (H, N, 6) tensors, provable pruning of hypotheses that cannot win. Numpy arrays or CPU tensors."""
 
     name = "numba"
     prunes = True
@@ -205,7 +210,7 @@ class NumbaBackend(ScoringBackend):
             sp.tau_c,
             sp.occlusion_aware,
         )
-        return torch.from_numpy(v)
+        return as_kind(v, points)
 
     def gains(
         self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf, cells=None
@@ -219,12 +224,14 @@ class NumbaBackend(ScoringBackend):
 
     def _arrays(self, points: Tensor, state: Tensor, cells=None):
         """The :class:`~cuboidcli.geometry.fused.ScoringArrays` of (points, state), kept for the last pair
-        scored: a step scores its batches and then the winner's moves against the same two tensors. The
-        tensors are held, so their identity and version tell a repeat from new ones."""
+        scored: a step scores its batches and then the winner's moves against the same two arrays. They are
+        held, so their identity (and a tensor's version; the fit replaces a numpy state rather than
+        changing it) tells a repeat from new ones."""
         from cuboidcli.geometry.fused import scoring_arrays
 
         cells = self.cells_of(points) if cells is None else cells
-        objects, versions = (points, state, cells), (points._version, state._version)
+        objects = (points, state, cells)
+        versions = (getattr(points, "_version", None), getattr(state, "_version", None))
         cached = getattr(self, "_cache", None)
         if cached is not None and cached[1] == versions and all(map(operator.is_, cached[0], objects)):
             return cached[2]
@@ -236,29 +243,30 @@ class NumbaBackend(ScoringBackend):
         self, points, center, half, rotation, a_min: float, a_max: float,
         iters: int = FitConfig.refine_iters, lr: float = FitConfig.refine_lr,
     ):  # fmt: skip
-        arrays = (x.numpy() for x in (points, center, half, rotation))
+        arrays = (numpy64(x) for x in (points, center, half, rotation))
         out = refine_cuboid_fused(*arrays, a_min, a_max, iters, lr)
-        return tuple(torch.from_numpy(np.asarray(x)) for x in out)
+        return tuple(as_kind(np.asarray(x), points) for x in out)
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) every kernel this backend runs, on tiny inputs."""
-        p = torch.tensor([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]], dtype=torch.float64)
-        c = torch.tensor([[0.0, 0.0, 2.5]], dtype=torch.float64)
-        a = torch.full((1, 3), 0.5, dtype=torch.float64)
-        R = torch.eye(3, dtype=torch.float64)[None]
+        p = np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]])
+        c = np.array([[0.0, 0.0, 2.5]])
+        a = np.full((1, 3), 0.5)
+        R = np.eye(3)[None]
         sp = ScoreParams(0.004, 5.0, 0.008)
         from cuboidcli.geometry.cells import ImageCells
 
-        self.gains(p, c, a, R, torch.zeros(2, dtype=torch.float64), sp)
+        self.gains(p, c, a, R, np.zeros(2), sp)
         cells = ImageCells.of_grid(np.array([0, 1]), np.array([0.0, 0.05]), np.array([0.0]))
-        self.gains(p, c, a, R, torch.zeros(2, dtype=torch.float64), sp, cells=cells)
+        self.gains(p, c, a, R, np.zeros(2), sp, cells=cells)
         self.values(p, c, a, R, sp)
         self.refine(p[[0] * 6], c[0], a[0], R[0], 1e-3, 2.0)
 
 
 class TorchBackend(ScoringBackend):
     """The torch reference kernels of :mod:`cuboidcli.geometry.kernels` in float64, on any device;
-    hypotheses are scored ``chunk`` at a time. No pruning: exact selection scores every hypothesis."""
+    hypotheses are scored ``chunk`` at a time. No pruning: exact selection scores every hypothesis.
+    Numpy arrays given to it (labelling points after a fit) become CPU tensors."""
 
     name = "torch"
     prunes = False
@@ -275,13 +283,13 @@ class TorchBackend(ScoringBackend):
         return max(64, GPU_CHUNK_PAIRS // max(points.shape[0], 1))
 
     def values(self, points, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:
-        return values_torch(*(x.double() for x in (points, centers, half_sizes, rotations)), sp)
+        return values_torch(*(_tensor64(x) for x in (points, centers, half_sizes, rotations)), sp)
 
     def gains(
         self, points, centers, half_sizes, rotations, state, sp: ScoreParams, prune_below=-np.inf, cells=None
     ):
-        tensors = (x.double() for x in (points, centers, half_sizes, rotations, state))
-        return gains_torch(*tensors, sp, chunk=self._chunk(points)).cpu().numpy()
+        tensors = [_tensor64(x) for x in (points, centers, half_sizes, rotations, state)]
+        return gains_torch(*tensors, sp, chunk=self._chunk(tensors[0])).cpu().numpy()
 
     def refine(
         self, points, center, half, rotation, a_min: float, a_max: float,
@@ -346,5 +354,14 @@ def backend_for(name: str, device: torch.device | str) -> ScoringBackend:
     return {"numba": NumbaBackend, "hybrid": HybridBackend}.get(kind, TorchBackend)()
 
 
-def _numpy64(x: Tensor) -> np.ndarray:
-    return x.double().numpy()
+def _numpy64(x) -> np.ndarray:
+    return numpy64(x)
+
+
+def _tensor64(x) -> Tensor:
+    """``x`` as a float64 tensor (a numpy array on the CPU)."""
+    if is_tensor(x):
+        return x.double()
+    import torch
+
+    return torch.from_numpy(np.asarray(x, dtype=np.float64))

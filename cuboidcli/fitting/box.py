@@ -1,6 +1,6 @@
 """The objects the fitting loop hands from one stage to the next once a step has its winner:
 
-- :class:`Box`: one cuboid as torch tensors with a leading axis of one box;
+- :class:`Box`: one cuboid as arrays (numpy, or tensors) with a leading axis of one box;
 - :class:`Scored`: a box with its values at every point, its inlier-count gain and how it was aligned;
 - :class:`StepContext`: what every stage of one step reads (the points, the state of the cuboids selected
   so far, the inlier function's parameters, the settings, the scoring backend and the random generator).
@@ -12,16 +12,20 @@ growing, aligning and the room-shell rule all use them.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import torch
-from torch import Tensor
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.backend import ScoringBackend, backend_for
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scoring import ScoreParams
-from cuboidcli.geometry.kernels import INLIER_CUT, combine
+from cuboidcli.geometry import arrays
+from cuboidcli.geometry.arrays import device_of, indices, numpy64
+from cuboidcli.geometry.inlier import INLIER_CUT, combine
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 SLAB_RATIO = 0.25
 """A box is a slab (a wall, a floor, a ceiling, a table top) when its thinnest half-size is under this share
@@ -36,8 +40,9 @@ pixels at depth edges, a reflection) do not stretch a box fitted to them."""
 class Box:
     """One cuboid as the fitting loop holds it: (1, 3) ``center`` and (1, 3) ``half`` sizes in metres and a
     (1, 3, 3) ``rotation`` whose columns are the cuboid's axes, in the points' frame (a frame's: the OpenCV
-    camera's) and on their device. The dtype is the solver's (float32 for a frame's points); the leading
-    axis of one box lets the backend's batched kernels take a box as it is."""
+    camera's), of their kind (numpy arrays or tensors) and on their device. The dtype is the solver's
+    (float32 for a frame's points); the leading axis of one box lets the backend's batched kernels take a
+    box as it is."""
 
     center: Tensor
     half: Tensor
@@ -45,30 +50,21 @@ class Box:
 
     @classmethod
     def from_numpy(cls, center: np.ndarray, half: np.ndarray, rotation: np.ndarray, like: Tensor) -> Box:
-        """The box of (3,) ``center``, (3,) ``half`` and (3, 3) ``rotation`` arrays, on the device and in the
-        dtype of ``like``."""
-        c, a, r = (
-            torch.from_numpy(x)[None].to(device=like.device, dtype=like.dtype)
-            for x in (center, half, rotation)
-        )
-        return cls(c, a, r)
+        """The box of (3,) ``center``, (3,) ``half`` and (3, 3) ``rotation`` arrays, of the kind, on the
+        device and in the dtype of ``like``."""
+        return cls(*(arrays.like(x[None], like) for x in (center, half, rotation)))
 
     def numpy(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(center (3,), half (3,), rotation (3, 3)) as float64 arrays."""
-        return tuple(x[0].double().cpu().numpy() for x in (self.center, self.half, self.rotation))
+        return tuple(numpy64(x[0]) for x in (self.center, self.half, self.rotation))
 
     def thin_axis(self) -> int:
         """The box's slab axis (:func:`thin_axis` of its half-sizes as they are), or -1."""
-        return thin_axis(self.half[0].cpu().numpy())
+        return thin_axis(numpy64(self.half[0]))
 
     def to_cuboid(self, gain: float) -> Cuboid:
         """The selected box as a :class:`~cuboidcli.cuboid.Cuboid` with its inlier-count gain."""
-        return Cuboid(
-            self.center[0].cpu().numpy(),
-            self.half[0].cpu().numpy(),
-            self.rotation[0].cpu().numpy(),
-            inlier_gain=gain,
-        )
+        return Cuboid(*self.numpy(), inlier_gain=gain)
 
 
 @dataclass(frozen=True)
@@ -88,16 +84,16 @@ class Scored:
 @dataclass(frozen=True)
 class StepContext:
     """What the stages of one step read: ``points`` (N, 3) and ``state`` (N,) float64, the f_OAI of the
-    cuboids selected so far, on one device; the inlier function's ``sp``; the ``config``; the ``backend``
-    that computes values, gains and refinements; the ``generator`` that draws the refinement's subset of
-    inliers."""
+    cuboids selected so far, of one kind on one device; the inlier function's ``sp``; the ``config``; the
+    ``backend`` that computes values, gains and refinements; the ``generator`` (numpy's for numpy arrays,
+    torch's for tensors) that draws the refinement's subset of inliers."""
 
     points: Tensor
     state: Tensor
     sp: ScoreParams
     config: FitConfig
     backend: ScoringBackend
-    generator: torch.Generator
+    generator: Any
 
     @classmethod
     def of(
@@ -107,17 +103,18 @@ class StepContext:
         config: FitConfig,
         sp: ScoreParams | None = None,
         backend: ScoringBackend | None = None,
-        generator: torch.Generator | None = None,
+        generator=None,
     ) -> StepContext:
         """A context with defaults for what is left out: the config's inlier function, the backend
-        ``config.backend`` names on the points' device, a generator seeded with ``config.seed``."""
+        ``config.backend`` names on the points' device, a generator of the points' kind seeded with
+        ``config.seed``."""
         return cls(
             points,
             state,
             sp or score_params(config),
             config,
-            backend or backend_for(config.backend, points.device),
-            generator or torch.Generator().manual_seed(config.seed),
+            backend or backend_for(config.backend, device_of(points)),
+            generator if generator is not None else arrays.generator(config.seed, points),
         )
 
     def values(self, box: Box) -> Tensor:
@@ -143,7 +140,7 @@ class StepContext:
     def newly_explained(self, values: Tensor) -> Tensor:
         """Indices (M,) of the points a box with ``values`` makes inliers (:data:`INLIER_CUT`) that the
         state explains less well."""
-        return ((values >= INLIER_CUT) & (values > self.state)).nonzero().squeeze(1)
+        return indices((values >= INLIER_CUT) & (values > self.state))
 
 
 def score_params(config: FitConfig) -> ScoreParams:
@@ -154,7 +151,7 @@ def score_params(config: FitConfig) -> ScoreParams:
 def values_one(pts, c, a, R, sp: ScoreParams, backend: ScoringBackend | None = None) -> Tensor:
     """f_OAI of one cuboid ((1, 3) centre, (1, 3) half-sizes, (1, 3, 3) rotation) at every point (N,),
     float64, computed by ``backend`` (None: the default backend of the points' device)."""
-    return (backend or backend_for("auto", pts.device)).values(pts, c, a, R, sp)[0]
+    return (backend or backend_for("auto", device_of(pts))).values(pts, c, a, R, sp)[0]
 
 
 def gain_of(values: Tensor, state: Tensor) -> float:

@@ -339,16 +339,49 @@ def setting_error(name: str, value, flag: str | None = None, choices: tuple[str,
 def resolve_device(device: str, name: str = "device") -> str:
     """The torch device ``device`` means: ``auto`` is cuda if there is one, else cpu; cuda without one, or
     any other name, is a one-line ValueError naming the setting ``name`` (``--device`` on the command
-    line). What :attr:`FitConfig.device` holds, and every command's ``--device``."""
+    line). What :attr:`FitConfig.device` holds, and every command's ``--device``.
+
+    ``auto`` on a machine without a GPU driver is cpu without asking torch: a frame fitted on the CPU
+    never imports it."""
+    if device == "auto" and not _may_have_gpu():
+        return "cpu"
+    if device not in ("auto", "cpu", "cuda"):
+        raise ValueError(f"{name} {device!r}: choose auto, cpu or cuda")
+    if device == "cpu":
+        return device
     import torch
 
     if device == "auto":
         return "cuda" if torch.cuda.is_available() else "cpu"
-    if device not in ("cpu", "cuda"):
-        raise ValueError(f"{name} {device!r}: choose auto, cpu or cuda")
-    if device == "cuda" and not torch.cuda.is_available():
+    if not torch.cuda.is_available():
         raise ValueError(f"{name} cuda: no CUDA device is available; use {name} cpu or auto")
     return device
+
+
+def _may_have_gpu() -> bool:
+    """Whether torch might find a GPU here: an NVIDIA driver that reports a device (asked through NVML,
+    which leaves CUDA uninitialised, so forked workers can still use it) or a ROCm device node. False
+    means surely none; True is settled by torch."""
+    import ctypes
+    import os
+
+    if os.path.exists("/dev/kfd"):
+        return True
+    for lib in ("libnvidia-ml.so.1", "nvml.dll"):
+        try:
+            nvml = ctypes.CDLL(lib)
+        except OSError:
+            continue
+        count = ctypes.c_uint(0)
+        try:
+            if nvml.nvmlInit_v2() != 0:
+                return False
+            ok = nvml.nvmlDeviceGetCount_v2(ctypes.byref(count)) == 0
+            nvml.nvmlShutdown()
+        except AttributeError:  # an NVML without these entry points: let torch decide
+            return True
+        return ok and count.value > 0
+    return False
 
 
 #: Outdoor settings of the paper's SMH experiments.

@@ -18,17 +18,21 @@ seen from the camera that observed it or from a virtual viewpoint outside its su
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
-from torch import Tensor
 
 from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.backend import ScoringBackend
+from cuboidcli.geometry.arrays import is_tensor
 from cuboidcli.geometry.cells import ImageCells
 from cuboidcli.geometry.cloud import RoomUp
 from cuboidcli.geometry.gravity import Gravity
 from cuboidcli.sampling import SpaceCells
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 #: The kinds of input, each with its defaults (:data:`cuboidcli.fitting.config.KIND_DEFAULTS`).
 KINDS = ("frame", "room")
@@ -38,7 +42,8 @@ VIEWS = ("camera", "cameras", "none")
 
 @dataclass
 class ImageGrid:
-    """A depth map's fitting grid: every ``step``-th pixel in each direction."""
+    """A depth map's fitting grid: every ``step``-th pixel in each direction; ``index`` and ``depth`` of the
+    points' kind (numpy arrays or tensors)."""
 
     index: Tensor
     """(N,) flat index of each fitting point in the grid (cells without depth hold no point)."""
@@ -81,7 +86,8 @@ class FitInput:
     kind: str
     """``frame`` or ``room``."""
     points: Tensor
-    """(N, 3) float32 metres: a frame's in the OpenCV camera frame, a room's in its own world frame."""
+    """(N, 3) float32 metres: a frame's in the OpenCV camera frame, a room's in its own world frame. A numpy
+    array (a frame on the CPU: no torch needed) or a tensor (a GPU, a room)."""
     views: str
     """camera, cameras or none (:data:`VIEWS`)."""
     grid: ImageGrid | None = None
@@ -107,3 +113,15 @@ class FitInput:
     @property
     def n(self) -> int:
         return int(self.points.shape[0])
+
+    def as_tensors(self) -> FitInput:
+        """This input with its points and grid as CPU tensors (itself if they are tensors already): for the
+        parts and backends that compute with torch."""
+        if is_tensor(self.points):
+            return self
+        import torch
+
+        grid = self.grid
+        if grid is not None:
+            grid = replace(grid, index=torch.from_numpy(grid.index), depth=torch.from_numpy(grid.depth))
+        return replace(self, points=torch.from_numpy(self.points), grid=grid)

@@ -16,7 +16,6 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
-import torch
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
@@ -28,13 +27,15 @@ from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.fit_input import FitInput
 from cuboidcli.fitting.objects import SceneObject, group_objects
 from cuboidcli.fitting.prepare import frame_input, grid_assignment
-from cuboidcli.fitting.room import low_walls_are_furniture, room_input
 from cuboidcli.fitting.search import gain_upper_bound, search_step
 from cuboidcli.fitting.shell import cuboid_kind
 from cuboidcli.fitting.winner import refine_winner
+from cuboidcli.geometry import arrays
+from cuboidcli.geometry.arrays import device_of, float32, numpy64
+from cuboidcli.geometry.backends import resolve_backend
 from cuboidcli.geometry.cloud import RoomUp
 from cuboidcli.geometry.gravity import Gravity
-from cuboidcli.geometry.kernels import combine
+from cuboidcli.geometry.inlier import combine
 from cuboidcli.sampling import Sampler, SamplingContext
 from cuboidcli.solvers.base import CuboidSolver
 
@@ -143,6 +144,7 @@ def fit_points(
     refinement backend is the input's (a room's, which knows how its points were seen), else chosen here,
     once, from ``config.backend`` and the points' device (ValueError for "numba" on a GPU)."""
     config = config.for_kind(prep.kind)
+    prep = arrays_for(prep, config, solver, sampler)
     alignment = prep.alignment
     grid = prep.grid
     timing = {} if timing is None else timing
@@ -158,15 +160,15 @@ def fit_points(
         kind=prep.kind,
     )
     sp = score_params(config)
-    backend = prep.backend or backend_for(config.backend, pts.device)
+    backend = prep.backend or backend_for(config.backend, device_of(pts))
     if grid is not None:
         backend.bind_cells(pts, grid.cells)
-    gen = torch.Generator().manual_seed(config.seed)
-    state = torch.zeros(n, dtype=torch.float64, device=pts.device)
+    gen = arrays.generator(config.seed, pts)  # numpy's for numpy arrays, torch's for tensors
+    state = arrays.zeros(n, pts)
     cuboids: list[Cuboid] = []
     if n < config.min_set:
         info.stop_reason = "too_few_points"
-        info.state = state.cpu().numpy()
+        info.state = numpy64(state)
         return cuboids, info
     while True:
         if len(cuboids) >= config.max_cuboids:
@@ -178,7 +180,7 @@ def fit_points(
             None if grid is None else grid.index,
             None if grid is None else grid.shape,
             None if grid is None else grid.depth,
-            state.float(),
+            float32(state),
             len(cuboids),
             None if grid is None else grid.focal_cells,
             prep.space,
@@ -217,7 +219,7 @@ def fit_points(
         timing["update"] += time.perf_counter() - t4
         if progress is not None:
             progress(info.iterations, len(cuboids), winner.gain)
-    info.state = state.cpu().numpy()
+    info.state = numpy64(state)
     return cuboids, info
 
 
@@ -234,23 +236,31 @@ def estimate(
     seen from the input's viewpoint), the label of every fitting point and, for a room, its whole objects.
 
     Returns the cuboids (in selection order, each with its ``kind`` and ``inlier_gain``) and a FitInfo.
-    Deterministic for ``config.seed``."""
+    Deterministic for ``config.seed``.
+
+    A frame's input of numpy arrays is fitted on them when the backend is numba and both parts take numpy
+    arrays (``takes_numpy``: the numerical solver, the samplers but the learned one), which needs no torch;
+    otherwise on tensors (:meth:`~cuboidcli.fitting.fit_input.FitInput.as_tensors`). The two draw their
+    random numbers from different generators (numpy's, torch's), so the same seed gives other cuboids."""
     config = config.for_kind(inp.kind)
     if inp.kind == "room" and getattr(sampler, "name", "") == "learned":
         raise ValueError("the learned sampler weighs the pixels of a depth map; fit a room with sequential")
+    inp = arrays_for(inp, config, solver, sampler)
     timing = dict(inp.timing_s)
     cuboids, info = fit_points(inp, config, solver, sampler, progress, timing)
     info.gravity = inp.gravity
     info.warnings = [*inp.warnings, *info.warnings]
-    points = inp.points.double().cpu().numpy()
+    points = numpy64(inp.points)
     for c in cuboids:
         c.kind = cuboid_kind(points, c, inp.down, inp.viewpoint)
     room = inp.room
     if room is not None:
+        from cuboidcli.fitting.room import low_walls_are_furniture
+
         low_walls_are_furniture(cuboids, points, room.up.up)
     timing["total"] = time.perf_counter() - inp.started
     t = time.perf_counter()
-    backend = inp.backend or backend_for(config.backend, inp.points.device)
+    backend = inp.backend or backend_for(config.backend, device_of(inp.points))
     labels = assign_points(inp.points, cuboids, score_params(config), backend)
     if room is None:
         if info.state is not None and len(cuboids):
@@ -269,6 +279,17 @@ def estimate(
         info.visibility, info.viewpoint = room.visibility, inp.viewpoint
     info.timing_s = {k: round(v, 6) for k, v in timing.items()}
     return cuboids, info
+
+
+def arrays_for(inp: FitInput, config: FitConfig, solver, sampler) -> FitInput:
+    """``inp`` as the arrays it is fitted on: an input of numpy arrays stays so where the backend is numba
+    and both parts take numpy arrays (``takes_numpy``), and becomes tensors otherwise."""
+    if arrays.is_tensor(inp.points) or inp.backend is not None:
+        return inp
+    numba = resolve_backend(config.backend, "cpu") == "numba"
+    if numba and all(getattr(part, "takes_numpy", False) for part in (solver, sampler)):
+        return inp
+    return inp.as_tensors()
 
 
 def fit_depth(
@@ -303,6 +324,8 @@ def fit_room(
     """Fit a room given as points (N, 3), metres, in its own world frame (``viewpoints`` (N, 3): the camera
     that saw each point, None for a bare cloud; ``up_hint`` (3,): the direction the input calls up):
     :func:`~cuboidcli.fitting.room.room_input`, then :func:`estimate`."""
+    from cuboidcli.fitting.room import room_input
+
     config = (config or FitConfig()).for_kind("room")
     warm_up_room(solver, sampler)
     inp = room_input(points, config, viewpoints, up_hint)

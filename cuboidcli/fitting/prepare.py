@@ -9,12 +9,12 @@ import time
 from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 
 from cuboidcli.camera import Camera, valid_depth
 from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.fit_input import FitInput, ImageGrid
+from cuboidcli.geometry.arrays import as_kind, numpy64
 from cuboidcli.geometry.cells import ImageCells
 from cuboidcli.geometry.down import combine_down
 from cuboidcli.geometry.gravity import Gravity, estimate_gravity, given_gravity, manhattan_axes
@@ -28,7 +28,8 @@ INVALID = -3
 
 def prepare_points(depth_m: np.ndarray, camera: Camera, grid_step: int, device: str = "cpu") -> FitInput:
     """A frame's fitting points on its grid: every grid_step-th pixel (nearest, no averaging), invalid depth
-    excluded; seen from the camera, not yet aligned (:func:`frame_input` adds gravity)."""
+    excluded; seen from the camera, not yet aligned (:func:`frame_input` adds gravity). Numpy arrays on
+    the CPU, tensors on another ``device``."""
     if depth_m.shape != (camera.height, camera.width):
         raise ValueError(
             f"depth map is {depth_m.shape[1]}x{depth_m.shape[0]} but the camera is "
@@ -43,15 +44,19 @@ def prepare_points(depth_m: np.ndarray, camera: Camera, grid_step: int, device: 
     u, v = camera.pixel_grid(grid_step)
     cells = ImageCells.of_grid(ok, (u[0] - camera.cx) / camera.fx, (v[:, 0] - camera.cy) / camera.fy)
     image_grid = ImageGrid(
-        index=torch.from_numpy(ok),
+        index=ok,
         shape=depth_grid.shape,
-        depth=torch.from_numpy(depth_grid.astype(np.float32)).to(device),
+        depth=depth_grid.astype(np.float32),
         step=grid_step,
         focal_cells=(camera.fx / grid_step, camera.fy / grid_step),
         cells=cells,
     )
-    points = torch.from_numpy(flat[ok].astype(np.float32)).to(device)
-    return FitInput("frame", points, "camera", grid=image_grid)
+    inp = FitInput("frame", flat[ok].astype(np.float32), "camera", grid=image_grid)
+    if str(device).split(":")[0] == "cpu":
+        return inp
+    inp = inp.as_tensors()
+    inp.points, inp.grid.depth = inp.points.to(device), inp.grid.depth.to(device)
+    return inp
 
 
 def frame_input(
@@ -100,7 +105,7 @@ def resolve_alignment(
         return None, None, ""
     hs, ws = prep.grid.shape
     grid = np.zeros((hs * ws, 3))
-    grid[prep.grid.index.numpy()] = prep.points.double().cpu().numpy()
+    grid[as_kind(prep.grid.index, grid)] = numpy64(prep.points)
     grid = grid.reshape(hs, ws, 3)
     estimated = estimate_gravity(grid, seed=config.seed)
     choice = combine_down(estimated, lines, lines_first=depth_predicted)
@@ -137,5 +142,5 @@ def grid_assignment(prep: FitInput, labels: np.ndarray) -> np.ndarray:
     index, -1 none, -2 occluded, -3 no depth."""
     grid = prep.grid
     out = np.full(grid.shape[0] * grid.shape[1], INVALID, dtype=np.int32)
-    out[grid.index.numpy()] = labels
+    out[as_kind(grid.index, out)] = labels
     return out.reshape(grid.shape)

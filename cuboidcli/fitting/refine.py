@@ -13,13 +13,15 @@ Iterations and learning rate are ``FitConfig.refine_iters`` and ``FitConfig.refi
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-import torch
-from torch import Tensor
 
 from cuboidcli.fitting.config import FitConfig
-from cuboidcli.geometry import kernels as K
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 
 def refine_cuboid_fused(
@@ -35,10 +37,10 @@ def refine_cuboid_fused(
     """CPU fast path of :func:`refine_cuboid` (numba, analytic gradient); numpy in, numpy out."""
     from cuboidcli.geometry.adam import refine_adam
 
-    r = matrix_to_axis_angle(torch.as_tensor(np.asarray(rotation, dtype=np.float64))).numpy()
+    r = matrix_to_axis_angle(np.asarray(rotation, dtype=np.float64))
     init = np.concatenate([np.asarray(center, np.float64), r, np.asarray(half, np.float64)])
     best = refine_adam(np.ascontiguousarray(points, np.float64), init, a_min, a_max, lr, iters)
-    R = axis_angle_to_matrix(torch.from_numpy(best[3:6].copy())).numpy()
+    R = axis_angle_to_matrix(best[3:6].copy())
     return best[:3], best[6:], R
 
 
@@ -54,6 +56,10 @@ def refine_cuboid(
 ) -> tuple[Tensor, Tensor, Tensor]:
     """points (N, 3) inliers; center (3,), half (3,), rotation (3, 3) -> refined (center, half, R): the best
     of ``iters`` Adam steps (learning rate ``lr``), half-sizes kept in [a_min, a_max]."""
+    import torch
+
+    from cuboidcli.geometry import kernels as K
+
     pts = points.double()
     c = center.double().clone().requires_grad_(True)
     r = matrix_to_axis_angle(rotation.double()).clone().requires_grad_(True)

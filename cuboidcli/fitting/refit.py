@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from cuboidcli.fitting.box import ROBUST_PERCENTILES, thin_axis
-from cuboidcli.geometry.kernels import INLIER_CUT
+from cuboidcli.geometry.inlier import INLIER_CUT
 
 FACE_BAND_M = 0.06
 """A point lies on a face plane of a box when it is this close to it (m); about sqrt(tau)."""

@@ -6,12 +6,12 @@ numpy on the CPU)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
-from torch import Tensor
 
-from cuboidcli.geometry import kernels as K
+if TYPE_CHECKING:
+    from torch import Tensor
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,8 @@ class ScoreParams:
 
 def values_torch(points: Tensor, centers, half_sizes, rotations, sp: ScoreParams) -> Tensor:
     """f_OAI(y, {h}) per hypothesis (H, N), or the plain soft inlier f_I(d^2) without OAI."""
+    from cuboidcli.geometry import kernels as K
+
     if sp.occlusion_aware:
         return K.oai_per_cuboid(points, centers, half_sizes, rotations, sp.tau, sp.beta, sp.tau_c)
     local = K.to_local(points, centers, rotations)
@@ -48,6 +50,10 @@ def gains_torch(
     points: Tensor, centers, half_sizes, rotations, state: Tensor, sp: ScoreParams, chunk: int = 64
 ) -> Tensor:
     """Reference gains (H,): sum over points of combine(value, state) - state."""
+    import torch
+
+    from cuboidcli.geometry import kernels as K
+
     out = []
     for s in range(0, centers.shape[0], chunk):
         v = values_torch(

@@ -7,27 +7,27 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import torch
 
 from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.backend import ScoringBackend, backend_for
 from cuboidcli.fitting.box import Box
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scoring import ScoreParams
-from cuboidcli.geometry.kernels import INLIER_CUT
+from cuboidcli.geometry.arrays import as_kind, cat, device_of, no_grad, numpy64
+from cuboidcli.geometry.inlier import INLIER_CUT
 from cuboidcli.sampling import Sampler, SamplingContext, draw_hypotheses, local_fraction_of
 from cuboidcli.solvers.base import CuboidSolver, solve_upright
 
 
-def solve_sets(solver: CuboidSolver, sets: torch.Tensor, config: FitConfig, alignment: Alignment | None):
+def solve_sets(solver: CuboidSolver, sets, config: FitConfig, alignment: Alignment | None):
     """Boxes for the minimal sets (H, C, 3): free, or under an alignment ``config.upright_fraction`` of
     them upright (yaw-only, from the first ``config.upright_set_size`` points of their sets; with
     "manhattan" half of those on the room's axes), the rest free. Returns (centers (H, 3), half_sizes
-    (H, 3), rotations (H, 3, 3))."""
+    (H, 3), rotations (H, 3, 3)), of the sets' kind."""
     n_up = 0 if alignment is None else int(round(config.upright_fraction * sets.shape[0]))
     if n_up == 0:
         return solver(sets)
-    frame = torch.from_numpy(alignment.frame())
+    frame = alignment.frame()
     n_free = sets.shape[0] - n_up
     parts = [solver(sets[:n_free])] if n_free else []
     up = sets[:, : max(1, min(config.upright_set_size, sets.shape[1]))]
@@ -37,17 +37,17 @@ def solve_sets(solver: CuboidSolver, sets: torch.Tensor, config: FitConfig, alig
         parts.append(solve_upright(solver, up[n_free + n_fixed :], frame))
     else:
         parts.append(solve_upright(solver, up[n_free:], frame))
-    return tuple(torch.cat([p[k] for p in parts if p[k].shape[0]]) for k in range(3))
+    return tuple(cat([p[k] for p in parts if p[k].shape[0]]) for k in range(3))
 
 
 def search_step(
     ctx: SamplingContext,
     sampler: Sampler,
     solver: CuboidSolver,
-    state: torch.Tensor,
+    state,
     sp: ScoreParams,
     config: FitConfig,
-    gen: torch.Generator,
+    gen,
     theta: float,
     timing: dict,
     alignment: Alignment | None = None,
@@ -56,22 +56,23 @@ def search_step(
     """The best hypothesis of one step: batches of |H| minimal sets are drawn, solved and scored (by
     ``backend``; None = the default of the points' device) until the best gains Theta, the miss
     probability falls below 1 - confidence, or ``config.max_batches`` is reached. Returns (its gain, its
-    box, the batches drawn); ``timing`` collects the seconds of "sample", "solve" and "score"."""
+    box, the batches drawn); ``timing`` collects the seconds of "sample", "solve" and "score". The arrays
+    are of one kind (numpy, or tensors), ``gen`` of theirs."""
     pts = ctx.points
-    backend = backend or backend_for(config.backend, pts.device)
+    backend = backend or backend_for(config.backend, device_of(pts))
     local_frac = local_fraction_of(sampler, config.local_fraction)
     gain, best, batches = -np.inf, None, 0
     t = time.perf_counter()
-    with torch.no_grad():
+    with no_grad(pts):
         dists = sampler.distributions(ctx)
     timing["sample"] += time.perf_counter() - t
     while True:
         t = time.perf_counter()
-        with torch.no_grad():
+        with no_grad(pts):
             _, idx, _ = draw_hypotheses(
                 sampler, ctx, config.hypotheses, config.min_set, gen, local_frac, config.local_radii_m, dists
             )
-        idx = idx.to(pts.device)
+        idx = as_kind(idx, pts)
         t2 = time.perf_counter()
         timing["sample"] += t2 - t
         centers, half, rot = solve_sets(solver, pts[idx], config, alignment)
@@ -90,16 +91,16 @@ def search_step(
             return gain, best, batches
 
 
-def gain_upper_bound(state: torch.Tensor) -> float:
+def gain_upper_bound(state) -> float:
     """The largest inlier-count gain any cuboid could add: a point with state s >= 0 gains at most 1 - s,
     an occluded point (s < 0) nothing (combine keeps the minimum of negative values)."""
-    s = state.double()
-    return float((1.0 - s[s >= 0].clamp_max(1.0)).sum())
+    s = numpy64(state)
+    return float((1.0 - np.minimum(s[s >= 0], 1.0)).sum())
 
 
 def miss_probability(
-    dists: tuple[torch.Tensor, torch.Tensor],
-    state: torch.Tensor,
+    dists: tuple,
+    state,
     theta: float,
     config: FitConfig,
     local_fraction: float,
@@ -114,9 +115,10 @@ def miss_probability(
     ``config.local_success``; global sets are counted as never winning it (their six points must all land
     on it: m^6). The miss probability of H hypotheses per batch is (1 - f m rho)^(H b).
     """
-    p, q = dists
-    mix = (q[:, None] * p).sum(0).cpu()
-    open_ = (state.cpu() < INLIER_CUT) & (state.cpu() >= 0)
+    p, q = numpy64(dists[0]), numpy64(dists[1])
+    mix = (q[:, None] * p).sum(0)
+    s = numpy64(state)
+    open_ = (s < INLIER_CUT) & (s >= 0)
     n_open = int(open_.sum())
     if n_open < theta:
         return 0.0

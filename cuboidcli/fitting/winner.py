@@ -13,10 +13,10 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-import torch
 
 from cuboidcli.fitting.box import ROBUST_PERCENTILES, Box, Scored, StepContext
 from cuboidcli.fitting.refit import refit_box
+from cuboidcli.geometry.arrays import as_kind, cast_like, copy, count, float64, numpy64, randperm
 
 #: A slab turned to the tightest rectangle around its points (:func:`square_slab`) is kept when it gains
 #: this share of what the solver's in-plane angle gains, both grown.
@@ -71,9 +71,9 @@ def square_slab(scored: Scored, ctx: StepContext) -> Box | None:
     if k < 0:
         return None
     inl = ctx.newly_explained(scored.values)
-    if inl.numel() < config.min_set:
+    if count(inl) < config.min_set:
         return None
-    p = ctx.points[inl].double().cpu().numpy()
+    p = numpy64(ctx.points[inl])
     c0, a0, r0 = box.numpy()
     i, j = [m for m in range(3) if m != k]
     uv = (p - p.mean(0)) @ r0[:, [i, j]]
@@ -108,9 +108,9 @@ def grow_cuboid(scored: Scored, ctx: StepContext) -> Scored:
     grown box with its values and gain (the input's box and gain when nothing grew) and the input's
     ``kind``."""
     config, box, gain = ctx.config, scored.box, scored.gain
-    c, a, R = box.center.clone(), box.half.clone(), box.rotation
+    c, a, R = copy(box.center), copy(box.half), box.rotation
     grown = False
-    axes = R[0].double()
+    axes = float64(R[0])
     slab_axis = box.thin_axis()
     faces = [(k, sgn) for k in range(3) if k != slab_axis or config.grow_thickness for sgn in (1.0, -1.0)]
     slab_cap = config.a_max if config.slab_max_m is None else max(config.a_max, config.slab_max_m)
@@ -161,7 +161,7 @@ def shrink_cuboid(scored: Scored, ctx: StepContext) -> Scored:
     edges move in. A slab's thickness stays. Returns the box with its values and gain and the input's
     ``kind``."""
     config, box, gain = ctx.config, scored.box, scored.gain
-    axes = box.rotation[0].double()
+    axes = float64(box.rotation[0])
     slab_axis = box.thin_axis()
     faces = [(k, sgn) for k in range(3) if k != slab_axis for sgn in (1.0, -1.0)]
     for _ in range(config.grow_rounds):
@@ -186,8 +186,8 @@ def _move_face(box: Box, axes, k: int, side: float, delta: float, ctx: StepConte
     the face on ``side`` (+1 / -1) moves, by 2 * delta; the opposite face stays. Returns the moved box and
     its gain, from the backend's scoring loop, which visits only the points the box can reach (its values
     at every point are computed once, for the box a search ends with)."""
-    c2 = box.center + (side * delta * axes[:, k]).to(box.center.dtype)[None]
-    a2 = box.half.clone()
+    c2 = box.center + cast_like(side * delta * axes[:, k], box.center)[None]
+    a2 = copy(box.half)
     a2[0, k] += delta
     moved = Box(c2, a2, box.rotation)
     return moved, ctx.gain(moved)
@@ -198,17 +198,17 @@ def _refine_once(scored: Scored, ctx: StepContext) -> Scored:
     the gain drops by at most ``config.refine_keep`` of it."""
     config, box = ctx.config, scored.box
     inl = ctx.newly_explained(scored.values)
-    if inl.numel() < config.min_set:
+    if count(inl) < config.min_set:
         return scored
     a_max = max(config.a_max, float(box.half.max()))  # a grown long slab keeps its length
-    if inl.numel() > config.refine_max_points:
-        pick = torch.randperm(inl.numel(), generator=ctx.generator)[: config.refine_max_points]
-        inl = inl[pick.to(inl.device)]
+    if count(inl) > config.refine_max_points:
+        pick = randperm(count(inl), ctx.generator)[: config.refine_max_points]
+        inl = inl[as_kind(pick, inl)]
     c, a, R = box.center, box.half, box.rotation
     c2, a2, R2 = ctx.backend.refine(
         ctx.points[inl], c[0], a[0], R[0], config.a_min, a_max, config.refine_iters, config.refine_lr
     )
-    refined = Box(c2[None].to(c.dtype), a2[None].to(a.dtype), R2[None].to(R.dtype))
+    refined = Box(cast_like(c2[None], c), cast_like(a2[None], a), cast_like(R2[None], R))
     out = replace(ctx.score(refined), kind=scored.kind)
     if out.gain >= scored.gain - config.refine_keep * abs(scored.gain):
         return out

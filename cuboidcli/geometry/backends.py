@@ -24,10 +24,9 @@ def resolve_backend(name: str, device: torch.device | str) -> str:
     "hybrid" (torch for batches on the device, numba on the CPU for the rest).
 
     Raises ValueError for an unknown name, or for "numba" on a device other than the CPU (the numba
-    loops read the points' memory directly and run on the CPU only)."""
-    import torch  # here, not at the top: the settings read BACKENDS, and `cuboids --help` needs no torch
-
-    kind = torch.device(device).type
+    loops read the points' memory directly and run on the CPU only). ``device``: a torch device or its
+    name ("cpu", "cuda:1"); read without torch, which a fit on numpy arrays never imports."""
+    kind = device.type if hasattr(device, "type") else str(device).split(":")[0]
     if name == "auto":
         return "numba" if kind == "cpu" else "hybrid"
     if name == "torch":

@@ -17,6 +17,21 @@ import math
 
 from numba import njit
 
+from cuboidcli.geometry.arrays import namespace
+
+INLIER_CUT = 0.5
+"""The inlier value that makes a point an inlier: f_I(d^2) = 0.5 exactly at d^2 = tau, so a point whose
+value f_OAI for a cuboid is at least this lies within sqrt(tau) of its surface and is not hidden by it. A
+state below it (``state < INLIER_CUT``) marks a point no selected cuboid explains yet."""
+
+
+def combine(new, old):
+    """f_OAI of a set joined with a new cuboid, from both values (numpy arrays or tensors alike): the
+    minimum if negative, else the maximum."""
+    xp = namespace(new)
+    lo = xp.minimum(new, old)
+    return xp.where(lo < 0, lo, xp.maximum(new, old))
+
 
 @njit(cache=True, inline="always")
 def f_inlier(d2, beta, inv_tau):

@@ -14,13 +14,12 @@ from __future__ import annotations
 import torch
 from torch import Tensor
 
+# INLIER_CUT and combine are shared with the numpy code of a fit, which must not import torch: defined once,
+# in .inlier, and offered here with the torch kernels
+from cuboidcli.geometry.inlier import INLIER_CUT, combine  # noqa: F401 - re-exported
+
 SIDE_AXIS = (0, 0, 1, 1, 2, 2)
 SIDE_SIGN = (1.0, -1.0, 1.0, -1.0, 1.0, -1.0)
-
-INLIER_CUT = 0.5
-"""The inlier value that makes a point an inlier: f_I(d^2) = 0.5 exactly at d^2 = tau (:func:`inlier_fn`),
-so a point whose value f_OAI for a cuboid is at least this lies within sqrt(tau) of its surface and is not
-hidden by it. A state below it (``state < INLIER_CUT``) marks a point no selected cuboid explains yet."""
 
 
 def to_local(points: Tensor, centers: Tensor, rotations: Tensor) -> Tensor:
@@ -109,12 +108,6 @@ def reduce_oai(f_io: Tensor, dims) -> Tensor:
 def oai_per_cuboid(points, centers, half_sizes, rotations, tau, beta, tau_c) -> Tensor:
     """f_OAI(y, {h}) of each cuboid on its own: (H, N)."""
     return reduce_oai(side_inlier_occlusion(points, centers, half_sizes, rotations, tau, beta, tau_c), -1)
-
-
-def combine(new: Tensor, old: Tensor) -> Tensor:
-    """f_OAI of a set joined with a new cuboid, from both values: min if negative, else max."""
-    lo = torch.minimum(new, old)
-    return torch.where(lo < 0, lo, torch.maximum(new, old))
 
 
 def oai_of_set(points, centers, half_sizes, rotations, tau, beta, tau_c) -> Tensor:

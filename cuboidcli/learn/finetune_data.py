@@ -32,7 +32,7 @@ class Scene:
 def load_scene(frame: Frame, grid_step: int, rgb_size: tuple[int, int] | None) -> Scene | None:
     """Read a frame; None when it has fewer than 6 valid points (or no RGB when ``rgb_size``)."""
     depth = frame.depth_m()
-    prep = prepare_points(depth, frame.camera, grid_step)
+    prep = prepare_points(depth, frame.camera, grid_step).as_tensors()  # training computes with torch
     if prep.points.shape[0] < 6:
         return None
     scene = Scene(

@@ -62,7 +62,7 @@ def prepare_scenes(
     def one(frame: Frame) -> TrainScene:
         depth = frame.depth_m()
         step = grid_step.step_for(*depth.shape) if isinstance(grid_step, FitConfig) else grid_step
-        return TrainScene(frame.name, prepare_points(depth, frame.camera, step))
+        return TrainScene(frame.name, prepare_points(depth, frame.camera, step).as_tensors())
 
     if workers > 1:
         with ThreadPoolExecutor(workers) as pool:

@@ -11,17 +11,30 @@ weights registry.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
-import torch
-from torch import Tensor
+import numpy as np
 
+from cuboidcli.geometry.arrays import (
+    categorical,
+    clamp,
+    float64,
+    indices_of_generator,
+    is_tensor,
+    is_torch_generator,
+    like,
+    namespace,
+    numpy64,
+)
 from cuboidcli.sampling.space import SpaceCells
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 
 @dataclass
 class SamplingContext:
-    """What a sampler may look at in one step.
+    """What a sampler may look at in one step, as numpy arrays or as tensors (the fit's kind).
 
     points (N, 3) valid fitting points, metres; grid_index (N,) flat index of each point in the fitting grid
     of shape grid_shape (Hs, Ws); depth_grid (Hs, Ws) metres with 0 where invalid; state (N,) = f_OAI of the
@@ -44,6 +57,9 @@ class SamplingContext:
 
 class Sampler(Protocol):
     name: str
+    takes_numpy: bool
+    """Whether :meth:`distributions` takes a context of numpy arrays (and gives numpy arrays back); a
+    sampler without it gets tensors (a network's)."""
 
     def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
         """Returns (p (Q, N) rows summing to 1, q (Q,) summing to 1)."""
@@ -60,6 +76,8 @@ class SamplerBase:
     :func:`draw_hypotheses`, whose localised sets run numba kernels."""
 
     name: str
+    takes_numpy = True
+    """The samplers here compute their weights on numpy arrays or tensors alike."""
 
     def warm_up(self) -> None:
         """Compile the kernels of localised minimal sets
@@ -76,8 +94,8 @@ class UniformSampler(SamplerBase):
 
     def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
         n = ctx.points.shape[0]
-        p = torch.full((1, n), 1.0 / n, dtype=torch.float64, device=ctx.points.device)
-        return p, torch.ones(1, dtype=torch.float64, device=ctx.points.device)
+        ref = float64(ctx.points[:1, 0])
+        return like(np.full((1, n), 1.0 / n), ref), like(np.ones(1), ref)
 
 
 class SequentialSampler(SamplerBase):
@@ -87,12 +105,12 @@ class SequentialSampler(SamplerBase):
     name = "sequential"
 
     def distributions(self, ctx: SamplingContext) -> tuple[Tensor, Tensor]:
-        w = (1.0 - ctx.state.double().clamp_min(0.0)).clamp_min(0.0)
+        w = clamp(1.0 - clamp(float64(ctx.state), 0.0), 0.0)
         total = w.sum()
         if total <= 1e-12:
-            w = torch.ones_like(w)
+            w = namespace(w).ones_like(w)
             total = w.sum()
-        return (w / total)[None], torch.ones(1, dtype=torch.float64, device=w.device)
+        return (w / total)[None], like(np.ones(1), w)
 
 
 class LocalSampler(SequentialSampler):
@@ -118,32 +136,36 @@ def build_local(inputs) -> LocalSampler:
     return LocalSampler()
 
 
-def draw_sets_and_maps(
-    p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
-) -> tuple[Tensor, Tensor]:
+def draw_sets_and_maps(p, q, hypotheses: int, min_set: int, generator) -> tuple:
     """Minimal sets: map j(h) ~ q per hypothesis, then C points ~ p_j with replacement.
 
-    p (Q, N), q (Q,) -> (maps (H,) long, indices (H, C) long). The chosen maps are what the sampler's
-    policy gradient needs. Draws happen on the CPU generator so that results do not depend on the device.
+    p (Q, N), q (Q,) -> (maps (H,) int64, indices (H, C) int64), tensors for a torch generator, else numpy
+    arrays. The chosen maps are what the sampler's policy gradient needs. Draws happen on the CPU
+    generator so that results do not depend on the device.
     """
-    p = p.detach().double().cpu()
-    q = q.detach().double().cpu()
-    if p.shape[0] == 1:
-        maps = torch.zeros(hypotheses, dtype=torch.long)
+    if is_torch_generator(generator):  # torch draws from the tensors as they are
+        p, q = (x.detach().double().cpu() if is_tensor(x) else _tensor(x) for x in (p, q))
     else:
-        maps = torch.multinomial(q, hypotheses, replacement=True, generator=generator)
-    idx = torch.empty(hypotheses, min_set, dtype=torch.long)
+        p, q = numpy64(p), numpy64(q)
+    if p.shape[0] == 1:
+        maps = np.zeros(hypotheses, dtype=np.int64)
+    else:
+        maps = categorical(q, hypotheses, generator)
+    idx = np.empty((hypotheses, min_set), dtype=np.int64)
     for j in range(p.shape[0]):
-        sel = (maps == j).nonzero().squeeze(1)
-        if sel.numel():
-            draws = torch.multinomial(p[j], sel.numel() * min_set, replacement=True, generator=generator)
-            idx[sel] = draws.view(-1, min_set)
-    return maps, idx
+        sel = np.flatnonzero(maps == j)
+        if sel.size:
+            idx[sel] = categorical(p[j], sel.size * min_set, generator).reshape(-1, min_set)
+    return indices_of_generator(maps, generator), indices_of_generator(idx, generator)
 
 
-def draw_minimal_sets(
-    p: Tensor, q: Tensor, hypotheses: int, min_set: int, generator: torch.Generator
-) -> Tensor:
+def _tensor(x: np.ndarray):
+    import torch
+
+    return torch.from_numpy(np.asarray(x, dtype=np.float64))
+
+
+def draw_minimal_sets(p, q, hypotheses: int, min_set: int, generator):
     """Indices (H, C) of minimal sets drawn as :func:`draw_sets_and_maps`."""
     return draw_sets_and_maps(p, q, hypotheses, min_set, generator)[1]
 
@@ -159,22 +181,23 @@ def draw_hypotheses(
     ctx: SamplingContext,
     hypotheses: int,
     min_set: int,
-    generator: torch.Generator,
+    generator,
     local_fraction: float = 0.0,
     radii_m: tuple[float, ...] | None = None,
     dists: tuple[Tensor, Tensor] | None = None,
-) -> tuple[Tensor, Tensor, Tensor]:
+) -> tuple:
     """One batch of minimal sets: the first ``round(local_fraction * hypotheses)`` localised (first point
     from the sampler's maps, the others from a 3D ball around it), the rest global (all C points from the
-    maps, the paper's sets). Returns (maps (H,), indices (H, C), local (H,) bool), all on the CPU."""
+    maps, the paper's sets). Returns (maps (H,), indices (H, C), local (H,) bool), all on the CPU:
+    tensors for a torch ``generator``, numpy arrays for numpy's."""
     from cuboidcli.sampling.proposals import DEFAULT_RADII_M, ball_minimal_sets, neighbour_weights
     from cuboidcli.sampling.space import space_minimal_sets
 
     frac = local_fraction_of(sampler, local_fraction)
     n_local = min(max(round(frac * hypotheses), 0), hypotheses)
     p, q = dists if dists is not None else sampler.distributions(ctx)
-    maps = torch.empty(hypotheses, dtype=torch.long)
-    idx = torch.empty(hypotheses, min_set, dtype=torch.long)
+    maps = np.empty(hypotheses, dtype=np.int64)
+    idx = np.empty((hypotheses, min_set), dtype=np.int64)
     if n_local:
         maps[:n_local], seeds = draw_sets_and_maps(p, q, n_local, 1, generator)
         weights = neighbour_weights(ctx.state)
@@ -188,6 +211,6 @@ def draw_hypotheses(
             )  # fmt: skip
     if n_local < hypotheses:
         maps[n_local:], idx[n_local:] = draw_sets_and_maps(p, q, hypotheses - n_local, min_set, generator)
-    local = torch.zeros(hypotheses, dtype=torch.bool)
+    local = np.zeros(hypotheses, dtype=bool)
     local[:n_local] = True
-    return maps, idx, local
+    return tuple(indices_of_generator(x, generator) for x in (maps, idx, local))

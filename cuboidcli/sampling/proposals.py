@@ -12,18 +12,23 @@ The ball members of a seed are the fitting points whose grid cell lies within th
 ball projects to (bounded with the focal length in grid cells and the nearest possible depth) and whose
 3D distance to the seed is at most r. They are drawn with replacement in proportion to ``weights``
 (points the selected cuboids already explain are drawn less), by one pass over the window with sorted
-uniforms: a set's point order does not matter to either solver. The uniforms come from the caller's torch
-generator, so the draws are deterministic for a seed and independent of the thread count.
+uniforms: a set's point order does not matter to either solver. The uniforms come from the caller's
+generator (numpy's or torch's), so the draws are deterministic for a seed and independent of the thread
+count.
 """
 
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 from numba import njit, prange
-from torch import Tensor
+
+from cuboidcli.geometry.arrays import indices_of_generator, numpy64, randint, sorted_uniforms
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 #: Default radii (m) of the balls of localised minimal sets: furniture parts, furniture, large surfaces.
 DEFAULT_RADII_M = (0.15, 0.3, 0.6, 1.2)
@@ -101,26 +106,26 @@ def focal_in_cells(points: Tensor, grid_index: Tensor, grid_shape: tuple[int, in
     A fitting point in grid cell (row, col) satisfies col = fx' x / z + cx' and row = fy' y / z + cy'.
     Used when the caller does not know the camera (the result is exact for a pinhole grid up to rounding).
     """
-    p = points.detach().double().cpu()
-    gi = grid_index.cpu()
+    p = numpy64(points)
+    gi = np.asarray(grid_index).astype(np.int64)
     ws = grid_shape[1]
     if p.shape[0] < 3:
         return 1.0, 1.0
-    z = p[:, 2].clamp_min(1e-6)
+    z = np.maximum(p[:, 2], 1e-6)
     out = []
-    for coord, cells in ((p[:, 0] / z, (gi % ws).double()), (p[:, 1] / z, (gi // ws).double())):
-        a = torch.stack([coord, torch.ones_like(coord)], 1)
-        sol = torch.linalg.lstsq(a, cells[:, None]).solution
-        out.append(float(abs(sol[0, 0])) if math.isfinite(float(sol[0, 0])) else 1.0)
+    for coord, cells in ((p[:, 0] / z, gi % ws), (p[:, 1] / z, gi // ws)):
+        a = np.stack([coord, np.ones_like(coord)], 1)
+        sol = np.linalg.lstsq(a, cells.astype(np.float64), rcond=None)[0]
+        out.append(float(abs(sol[0])) if math.isfinite(float(sol[0])) else 1.0)
     return max(out[0], 1e-3), max(out[1], 1e-3)
 
 
-def neighbour_weights(state: Tensor) -> Tensor:
-    """Weights of the ball members: 1 - f_OAI for points with state in [0, 1] (unexplained points are
-    drawn more), a small weight for occluded points (a new cuboid cannot gain on them)."""
-    s = state.detach().double().cpu()
-    w = (1.0 - s.clamp(0.0, 1.0)).clamp_min(1e-3)
-    return torch.where(s < 0, torch.full_like(w, 0.05), w)
+def neighbour_weights(state) -> np.ndarray:
+    """Weights (N,) float64 of the ball members: 1 - f_OAI for points with state in [0, 1] (unexplained
+    points are drawn more), a small weight for occluded points (a new cuboid cannot gain on them)."""
+    s = numpy64(state)
+    w = np.maximum(1.0 - np.clip(s, 0.0, 1.0), 1e-3)
+    return np.where(s < 0, 0.05, w)
 
 
 def ball_minimal_sets(
@@ -129,12 +134,13 @@ def ball_minimal_sets(
     grid_shape: tuple[int, int],
     seeds: Tensor,
     min_set: int,
-    generator: torch.Generator,
+    generator,
     radii_m: tuple[float, ...] = DEFAULT_RADII_M,
     weights: Tensor | None = None,
     focal_cells: tuple[float, float] | None = None,
 ) -> Tensor:
-    """Minimal sets (S, C) long: each seed (S,) plus C - 1 points from a ball around it.
+    """Minimal sets (S, C) int64: each seed (S,) plus C - 1 points from a ball around it; numpy arrays or
+    tensors in, the ``generator``'s kind out (:func:`~cuboidcli.geometry.arrays.indices_of_generator`).
 
     The radius of each set is drawn uniformly from ``radii_m``; members are drawn with replacement in
     proportion to ``weights`` (N,) (None = equal weights); ``focal_cells`` are the focal lengths in grid
@@ -143,31 +149,31 @@ def ball_minimal_sets(
     n_sets = seeds.shape[0]
     out = np.empty((n_sets, min_set), dtype=np.int64)
     if n_sets == 0:
-        return torch.from_numpy(out)
+        return indices_of_generator(out, generator)
     hs, ws = grid_shape
-    gi = grid_index.cpu().numpy().astype(np.int64)
+    gi = np.asarray(grid_index).astype(np.int64)
     point_of_cell = np.full(hs * ws, -1, dtype=np.int64)
     point_of_cell[gi] = np.arange(gi.size)
-    radii = torch.tensor(radii_m, dtype=torch.float64)
-    pick = torch.randint(len(radii_m), (n_sets,), generator=generator)
-    u = torch.rand(n_sets, min_set - 1, generator=generator, dtype=torch.float64).sort(1).values
-    w = torch.ones(points.shape[0], dtype=torch.float64) if weights is None else weights.double().cpu()
+    radii = np.asarray(radii_m, dtype=np.float64)
+    pick = randint(len(radii_m), n_sets, generator)
+    u = sorted_uniforms(n_sets, min_set - 1, generator)
+    w = np.ones(points.shape[0]) if weights is None else numpy64(weights)
     fc, fr = focal_cells if focal_cells is not None else focal_in_cells(points, grid_index, grid_shape)
     _ball_sets(
-        points.detach().cpu().numpy().astype(np.float64),
+        np.ascontiguousarray(numpy64(points)),
         gi,
         point_of_cell,
         hs,
         ws,
-        seeds.cpu().numpy().astype(np.int64),
-        radii[pick].numpy(),
-        w.numpy(),
+        np.asarray(seeds).astype(np.int64),
+        radii[pick],
+        np.ascontiguousarray(w),
         float(fc),
         float(fr),
-        u.numpy(),
+        u,
         out,
     )
-    return torch.from_numpy(out)
+    return indices_of_generator(out, generator)
 
 
 _WARM = False
@@ -182,15 +188,8 @@ def warm_up_minimal_sets() -> None:
         return
     from cuboidcli.sampling.space import SpaceCells, space_minimal_sets
 
-    ball_minimal_sets(
-        torch.tensor([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0]]),
-        torch.tensor([0, 1]),
-        (1, 2),
-        torch.tensor([0]),
-        6,
-        torch.Generator().manual_seed(0),
-        focal_cells=(60.0, 60.0),
-    )
+    gen = np.random.default_rng(0)
     p = np.array([[0.0, 0.0, 2.0], [0.1, 0.0, 2.0], [0.2, 0.1, 2.0]])
-    space_minimal_sets(SpaceCells.of(p), torch.tensor([0]), 6, torch.Generator().manual_seed(0), (0.3,))
+    ball_minimal_sets(p[:2], np.array([0, 1]), (1, 2), np.array([0]), 6, gen, focal_cells=(60.0, 60.0))
+    space_minimal_sets(SpaceCells.of(p), np.array([0]), 6, gen, (0.3,))
     _WARM = True

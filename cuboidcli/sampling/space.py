@@ -4,18 +4,22 @@ a voxel grid instead of an image window (:mod:`cuboidcli.sampling.proposals` doe
 The points are binned into cubic cells of side :data:`CELL_M`; the members of a ball of radius r around a
 seed are the points of the cells the ball's bounding cube reaches whose distance to the seed is at most r.
 Members are drawn with replacement in proportion to their weights by one pass with sorted uniforms, as for
-frames, and the uniforms come from the caller's torch generator: deterministic for a seed and independent
-of the thread count.
+frames, and the uniforms come from the caller's generator (numpy's or torch's): deterministic for a seed
+and independent of the thread count.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
 from numba import njit, prange
-from torch import Tensor
+
+from cuboidcli.geometry.arrays import indices_of_generator, numpy64, randint, sorted_uniforms
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 #: Side of the cells the ball search visits (m).
 CELL_M = 0.25
@@ -103,23 +107,24 @@ def space_minimal_sets(
     cells: SpaceCells,
     seeds: Tensor,
     min_set: int,
-    generator: torch.Generator,
+    generator,
     radii_m: tuple[float, ...],
     weights: Tensor | None = None,
 ) -> Tensor:
-    """Minimal sets (S, C) long: each seed (S,) plus C - 1 points drawn from a ball around it, radius drawn
-    uniformly from ``radii_m`` per set, members in proportion to ``weights`` (N,) (None = equal)."""
+    """Minimal sets (S, C) int64: each seed (S,) plus C - 1 points drawn from a ball around it, radius drawn
+    uniformly from ``radii_m`` per set, members in proportion to ``weights`` (N,) (None = equal); the
+    ``generator``'s kind (:func:`~cuboidcli.geometry.arrays.indices_of_generator`)."""
     n_sets = seeds.shape[0]
     out = np.empty((n_sets, min_set), dtype=np.int64)
     if n_sets == 0:
-        return torch.from_numpy(out)
-    radii = torch.tensor(radii_m, dtype=torch.float64)
-    pick = torch.randint(len(radii_m), (n_sets,), generator=generator)
-    u = torch.rand(n_sets, min_set - 1, generator=generator, dtype=torch.float64).sort(1).values
+        return indices_of_generator(out, generator)
+    radii = np.asarray(radii_m, dtype=np.float64)
+    pick = randint(len(radii_m), n_sets, generator)
+    u = sorted_uniforms(n_sets, min_set - 1, generator)
     n = cells.points.shape[0]
-    w = torch.ones(n, dtype=torch.float64) if weights is None else weights.double().cpu()
+    w = np.ones(n) if weights is None else numpy64(weights)
     _space_sets(
         cells.points, cells.order, cells.start, cells.origin, cells.dims, cells.cell,
-        seeds.cpu().numpy().astype(np.int64), radii[pick].numpy(), w.numpy(), u.numpy(), out,
+        np.asarray(seeds).astype(np.int64), radii[pick], np.ascontiguousarray(w), u, out,
     )  # fmt: skip
-    return torch.from_numpy(out)
+    return indices_of_generator(out, generator)

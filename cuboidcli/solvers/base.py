@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Protocol
 
-import torch
-from torch import Tensor
+from cuboidcli.geometry.arrays import cast_like
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 
 @dataclass(frozen=True)
@@ -29,10 +31,14 @@ class CuboidSolver(Protocol):
     ``minimal_sets`` is (H, C, 3) in camera coordinates (metres). Returns ``(centers (H, 3),
     half_sizes (H, 3), rotations (H, 3, 3))`` with half-sizes inside the solver's bounds, in the dtype and
     on the device of the input. Must be deterministic for a given input.
+
+    A solver whose ``takes_numpy`` is true takes numpy arrays too (and gives numpy arrays back); the
+    others are given tensors.
     """
 
     name: str
     bounds: SizeBounds
+    takes_numpy: bool
 
     def __call__(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]: ...
 
@@ -51,8 +57,9 @@ def solve_upright(
     ``frame`` (3, 3) has the world axes as columns in camera coordinates, its third column up. A solver
     with a ``solve_upright`` method (the numerical one) fits yaw-only boxes in that frame; any other fits a
     free box there, which is then turned upright (:func:`upright_nearest`). Returns camera-frame
-    (centers, half_sizes, rotations) like ``solver(minimal_sets)``."""
-    g = frame.to(minimal_sets)
+    (centers, half_sizes, rotations) like ``solver(minimal_sets)``; ``frame`` may be a numpy array for
+    tensor sets."""
+    g = cast_like(frame, minimal_sets)
     world = minimal_sets @ g
     if hasattr(solver, "solve_upright"):
         c, a, r = solver.solve_upright(world, fixed)
@@ -65,7 +72,9 @@ def solve_upright(
 def upright_nearest(rotations: Tensor) -> Tensor:
     """The upright rotations (H, 3, 3) nearest to ``rotations`` in a frame whose z axis is up: for each, the
     column most parallel to z is turned onto +-z by the smallest rotation, which turns the other two with
-    it (:func:`~cuboidcli.geometry.gravity.upright_rotation`, batched)."""
+    it (:func:`~cuboidcli.geometry.gravity.upright_rotation`, batched). Tensors."""
+    import torch
+
     r = rotations.double()
     k = r[:, 2, :].abs().argmax(-1)  # the column most parallel to up
     src = torch.gather(r, 2, k[:, None, None].expand(-1, 3, 1))[..., 0]  # (H, 3)

@@ -8,15 +8,17 @@ kept per hypothesis (the research code kept it by the batch mean — see NOTES.m
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-import torch
-from torch import Tensor
 
+from cuboidcli.geometry.arrays import device_of, like, numpy64
 from cuboidcli.geometry.backends import resolve_backend
-from cuboidcli.geometry.kernels import cuboid_sq_distance
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 from cuboidcli.solvers.base import SizeBounds
+
+if TYPE_CHECKING:
+    from torch import Tensor
 
 #: Adam steps of a box on the room's axes (no rotation parameter): its objective is then nearly convex in
 #: the centre and sizes. On minimal sets drawn while fitting two NYU frames, 30 steps come within 1.2 % of
@@ -30,8 +32,11 @@ def pca_init(points: Tensor, bounds: SizeBounds) -> tuple[Tensor, Tensor, Tensor
 
     The rotation's columns are the principal directions V (so y_hat = V^T (y - t0), the paper's R0 = V^T);
     the box is centred on the PCA-frame bounding box and that offset is mapped back with V (the research
-    code used V^T here, leaving the centre ~10 cm off).
+    code used V^T here, leaving the centre ~10 cm off). Tensors (the CPU path is
+    :func:`~cuboidcli.solvers.init_fused.pca_boxes`).
     """
+    import torch
+
     mean = points.mean(1)
     centred = points - mean[:, None]
     # SVD of the small (C x 3) matrices; float64 for stability with nearly-collinear sets.
@@ -55,7 +60,10 @@ def upright_init(points: Tensor, bounds: SizeBounds, fixed: bool) -> tuple[Tenso
     """Initial upright cuboid of each minimal set (H, C, 3) given in a frame whose z axis is up: the
     bounding box in the frame turned about z by the principal direction of the points' horizontal
     coordinates (2D PCA), or not turned at all when ``fixed`` (the frame's axes are the room's).
-    Returns (centers (H, 3), half-sizes (H, 3), yaw angles (H,))."""
+    Returns (centers (H, 3), half-sizes (H, 3), yaw angles (H,)). Tensors (the CPU path is
+    :func:`~cuboidcli.solvers.init_fused.upright_boxes`)."""
+    import torch
+
     mean = points.mean(1)
     centred = points - mean[:, None]
     if fixed:
@@ -86,38 +94,47 @@ class NumericalSolver:
     (:func:`~cuboidcli.geometry.backends.resolve_backend`; numba is refused on a GPU); "fused" is another
     name for numba."""
     name: str = "numerical"
+    takes_numpy = True
+    """Numpy sets are solved by the fused loop and give numpy boxes; tensors give tensors."""
 
     def objective(self, points: Tensor, center: Tensor, axis_angle: Tensor, half: Tensor) -> Tensor:
-        """F summed over each set's points: (H,). points (H, C, 3)."""
+        """F summed over each set's points: (H,). points (H, C, 3). Tensors."""
+        import torch
+
+        from cuboidcli.geometry.kernels import cuboid_sq_distance
+
         R = axis_angle_to_matrix(axis_angle)
         local = torch.einsum("hck,hkj->hcj", points - center[:, None], R)
-        d_sq = _batched_cuboid_sq_distance(local, half)
+        d_sq = cuboid_sq_distance(local, half)  # Eq. 2 for per-hypothesis point sets: (H, C)
         return d_sq.sum(1) * half.sum(-1)
 
     def __call__(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
-        if self._uses_numba(minimal_sets.device):
+        if self._uses_numba(device_of(minimal_sets)):
             return self._solve_fused(minimal_sets)
         return self._solve_torch(minimal_sets)
 
-    def _on_cpu(self, minimal_sets: Tensor) -> Tensor:
+    def _on_cpu(self, minimal_sets: Tensor) -> np.ndarray:
         """The sets as a float64 numpy array (copied from a GPU in "hybrid" mode: they are tiny)."""
-        return minimal_sets.detach().double().cpu().contiguous().numpy()
+        return np.ascontiguousarray(numpy64(minimal_sets))
 
     def solve_upright(self, minimal_sets: Tensor, fixed: bool = False) -> tuple[Tensor, Tensor, Tensor]:
         """Yaw-only boxes: ``minimal_sets`` (H, C, 3) in a frame whose z axis is up; every box turns about z
         only (``fixed``: not at all, the frame's axes are the room's). Same returns as ``__call__``, in that
         frame. One rotation parameter (or none) instead of three; a box on the room's axes converges in
         :data:`FIXED_AXES_ITERS` Adam steps."""
-        pts = minimal_sets.detach()
+        pts = minimal_sets
         rot_dof = 0 if fixed else 1
         iters = min(self.iters, FIXED_AXES_ITERS) if fixed else self.iters
-        if self._uses_numba(pts.device):
+        if self._uses_numba(device_of(pts)):
             from cuboidcli.solvers.init_fused import upright_boxes
 
             sets = self._on_cpu(pts)
             init = np.empty((sets.shape[0], 9))
             upright_boxes(sets, self.bounds.a_min, self.bounds.a_max, fixed, init)
             return self._adam_fused(pts, init, rot_dof, iters)
+        import torch
+
+        pts = pts.detach()
         with torch.no_grad():
             c0, a0, yaw = upright_init(pts.double(), self.bounds, fixed)
             r0 = torch.zeros_like(c0)
@@ -126,14 +143,14 @@ class NumericalSolver:
 
     def warm_up(self) -> None:
         """Compile (or load from numba's cache) the CPU kernels this solver runs, once per solver."""
-        if getattr(self, "_warm", False) or not self._uses_numba(torch.device("cpu")):
+        if getattr(self, "_warm", False) or not self._uses_numba("cpu"):
             return
-        sets = torch.tensor([[[0.0, 0.0, 2.0], [0.1, 0.0, 2.0], [0.0, 0.1, 2.1]]], dtype=torch.float64)
+        sets = np.array([[[0.0, 0.0, 2.0], [0.1, 0.0, 2.0], [0.0, 0.1, 2.1]]])
         self(sets)
         self.solve_upright(sets)  # yaw-only boxes; boxes on the room's axes share the kernels
         self._warm = True
 
-    def _uses_numba(self, device: torch.device) -> bool:
+    def _uses_numba(self, device) -> bool:
         """Whether sets on ``device`` are solved by the fused numba loop (else by torch)."""
         kind = resolve_backend("numba" if self.backend == "fused" else self.backend, device)
         return kind in ("numba", "hybrid")
@@ -141,14 +158,13 @@ class NumericalSolver:
     def _solve_fused(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
         from cuboidcli.solvers.init_fused import pca_boxes
 
-        pts = minimal_sets.detach()
-        init = np.empty((pts.shape[0], 9))
-        pca_boxes(self._on_cpu(pts), self.bounds.a_min, self.bounds.a_max, init)
-        return self._adam_fused(pts, init, 3)
+        init = np.empty((minimal_sets.shape[0], 9))
+        pca_boxes(self._on_cpu(minimal_sets), self.bounds.a_min, self.bounds.a_max, init)
+        return self._adam_fused(minimal_sets, init, 3)
 
     def _adam_fused(self, pts: Tensor, init: np.ndarray, rot_dof: int, iters: int | None = None):
         """The fused CPU loop of :meth:`_adam_torch` from ``init`` (H, 9) = (centre, axis-angle,
-        half-sizes) rows (float64 in, the input's dtype out)."""
+        half-sizes) rows (float64 in; out of the kind, dtype and device of ``pts``)."""
         from cuboidcli.solvers.adam_fused import adam_solve, rotation_matrices
 
         out = init.copy()
@@ -164,14 +180,12 @@ class NumericalSolver:
         )
         rot = np.empty((out.shape[0], 3, 3))
         rotation_matrices(out[:, 3:6].copy(), rot)
-        cast = {"dtype": pts.dtype, "device": pts.device}
-        return (
-            torch.from_numpy(out[:, :3].copy()).to(**cast),
-            torch.from_numpy(out[:, 6:].copy()).to(**cast),
-            torch.from_numpy(rot).to(**cast),
-        )
+        ref = pts[:1, 0, 0]
+        return like(out[:, :3], ref), like(out[:, 6:], ref), like(rot, ref)
 
     def _solve_torch(self, minimal_sets: Tensor) -> tuple[Tensor, Tensor, Tensor]:
+        import torch
+
         pts = minimal_sets.detach()
         with torch.no_grad():
             c0, a0, R0 = pca_init(pts, self.bounds)
@@ -183,6 +197,8 @@ class NumericalSolver:
     ):
         """Adam from (c0, axis-angle r0, a0) for ``iters`` steps (default ``self.iters``), keeping the best
         iterate per hypothesis; ``rot_dof`` as in :func:`~cuboidcli.solvers.adam_fused.adam_solve`."""
+        import torch
+
         iters = self.iters if iters is None else iters
         center = c0.clone().requires_grad_(True)
         rvec = r0.clone().requires_grad_(True)
@@ -215,8 +231,3 @@ def build(inputs) -> NumericalSolver:
     learning rate and steps, and its backend (``inputs.config``)."""
     c = inputs.config
     return NumericalSolver(bounds=SizeBounds.of(c), lr=c.solver_lr, iters=c.solver_iters, backend=c.backend)
-
-
-def _batched_cuboid_sq_distance(local: Tensor, half: Tensor) -> Tensor:
-    """Eq. 2 for per-hypothesis point sets: local (H, C, 3), half (H, 3) -> (H, C)."""
-    return cuboid_sq_distance(local, half)

@@ -283,6 +283,36 @@ def test_fit_never_loads_the_training_package(tmp_path):
     )
 
 
+def test_a_default_frame_fit_never_imports_torch(tmp_path):
+    """A depth map fitted with the default parts on the CPU (the sequential sampler, the numerical solver,
+    the numba kernels) runs on numpy and numba alone, in the command and in the Python API: torch takes
+    about a second to import, longer than the fit."""
+    sample = "cuboidcli/data/sample"
+    out = tmp_path / "r.json"
+    fit = ["fit", "--depth", f"{sample}/sample_depth.png", "-K", f"{sample}/camera.json", "-o", str(out)]
+    assert _modules_loaded_by([*fit, "--hypotheses=256"], ("torch",)) == []
+    assert json.loads(out.read_text())["cuboids"]
+    assert _modules_loaded_by([*fit, "--hypotheses=256", "--overlay", "--glb"], ("torch",)) == []
+    api = (
+        "import sys, cuboidcli as cb\n"
+        f"d = {str(ROOT / sample)!r}\n"
+        "r = cb.Fitter(hypotheses=256).fit(d + '/sample_depth.png', intrinsics=d + '/camera.json')\n"
+        "assert r.cuboids\n"
+        "print(sorted(m for m in sys.modules if m.startswith('torch')))\n"
+    )
+    assert _python_prints(api) == "[]"
+
+
+def _python_prints(code: str) -> str:
+    """The last line ``python -c CODE`` prints in a fresh process."""
+    import subprocess
+    import sys
+
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, cwd=ROOT)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.strip().splitlines()[-1]
+
+
 def _modules_loaded_by(args: list[str], prefixes: tuple[str, ...]) -> list[str]:
     """The modules starting with one of ``prefixes`` that ``cuboids ARGS`` imports in a fresh process."""
     import subprocess

@@ -168,7 +168,7 @@ def test_config_refuses_numba_on_a_gpu_and_unknown_backends():
 def test_fit_refuses_numba_for_points_off_the_cpu(room_depth, nyu_camera):
     """The backend is chosen from the points' device: points that are not on the CPU (here on the meta
     device, which any machine has) are refused with the numba backend before anything is computed."""
-    prep = prepare_points(room_depth[0], nyu_camera, 16)
+    prep = prepare_points(room_depth[0], nyu_camera, 16).as_tensors()
     prep.points = prep.points.to("meta")
     solver, sampler = NumericalSolver(), SequentialSampler()
     with pytest.raises(ValueError, match="CPU only"):
@@ -225,7 +225,7 @@ def test_cpu_fit_with_torch_gives_the_cuboids_of_numba(room_depth, nyu_camera, p
                 return _inner(self, *args, **kwargs)
 
             monkeypatch.setattr(cls, method, spy)
-    prep = prepare_points(room_depth[0], nyu_camera, 16)
+    prep = prepare_points(room_depth[0], nyu_camera, 16).as_tensors()  # one generator: torch's
     solver = NumericalSolver(SizeBounds(1e-3, 2.0))
     fits = {}
     for name in ("numba", "torch"):

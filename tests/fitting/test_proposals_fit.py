@@ -73,7 +73,7 @@ def _wall(nyu_camera):
 
 def test_grow_cuboid_pushes_faces_to_where_the_surface_ends(nyu_camera):
     wall, depth = _wall(nyu_camera)
-    prep = prepare_points(depth, nyu_camera, 8)
+    prep = prepare_points(depth, nyu_camera, 8).as_tensors()
     pts = prep.points.double()
     state = torch.zeros(pts.shape[0], dtype=torch.float64)
     sp = ScoreParams(0.004, 5.0, 0.008)

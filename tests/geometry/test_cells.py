@@ -26,7 +26,7 @@ def grid_scene(h=400, seed=0):
     depth = 3.0 + 0.8 * np.sin(u / 90.0) + 0.5 * (v / 480.0)
     depth[100:220, 200:330] = 1.6  # a box in front
     depth[rng.random(depth.shape) < 0.2] = 0.0  # holes
-    prep = prepare_points(depth, cam, 8)
+    prep = prepare_points(depth, cam, 8).as_tensors()
     pts = prep.points.double()
     g = torch.Generator().manual_seed(seed)
     n = pts.shape[0]

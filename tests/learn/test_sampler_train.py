@@ -49,7 +49,7 @@ def prep(camera):
     from cuboidcli.synth.render import render_boxes
 
     depth, _ = render_boxes(simple_room(), camera)
-    return prepare_points(depth, camera, 4)
+    return prepare_points(depth, camera, 4).as_tensors()
 
 
 def _net_output(net, prep, state=None):

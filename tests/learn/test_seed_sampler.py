@@ -24,7 +24,7 @@ def _kl_to_prior(sampler, prep, state):
 
 
 def test_trained_first_point_map_differs_from_its_prior(room_depth, nyu_camera):
-    prep = prepare_points(room_depth[0], nyu_camera, 8)
+    prep = prepare_points(room_depth[0], nyu_camera, 8).as_tensors()
     state = torch.zeros(prep.points.shape[0], dtype=torch.float64)
     state[: state.numel() // 3] = 0.95  # a third of the points explained
     trained = LearnedSampler.load(WEIGHTS)
@@ -36,7 +36,7 @@ def test_trained_first_point_map_differs_from_its_prior(room_depth, nyu_camera):
 
 
 def test_seed_records_score_seeds_and_train(room_depth, nyu_camera):
-    prep = prepare_points(room_depth[0], nyu_camera, 8)
+    prep = prepare_points(room_depth[0], nyu_camera, 8).as_tensors()
     cfg = SeedTrainConfig(hypotheses=128, steps=2)
     records = scene_records(prep, 0, FitConfig(), cfg, torch.Generator().manual_seed(0))
     assert 1 <= len(records) <= 2

@@ -30,7 +30,7 @@ def small_scene():
 
 
 def _context(depth, camera, state=None) -> SamplingContext:
-    prep = prepare_points(depth, camera, 4)
+    prep = prepare_points(depth, camera, 4).as_tensors()
     n = prep.points.shape[0]
     state = torch.zeros(n) if state is None else state
     return SamplingContext(prep.points, prep.grid.index, prep.grid.shape, prep.grid.depth, state, 0)
