@@ -228,3 +228,29 @@ def test_without_a_manhattan_frame_the_hint_is_up():
     up = room_up(pts, normals, hint=Y)
     assert up.source == "hint" and up.axes is None and np.allclose(up.up, Y) and up.confidence == 0.0
     assert "no two perpendicular surfaces" in up.warning
+
+
+def test_a_rough_floor_scores_its_densest_three_slices():
+    # the floor spread evenly over 10 cm of height, the whole room 1 m up: the 3 cm slices of the floor
+    # band hold 180 floor points each, the best three together 540 of the 600
+    pts, normals = room(floor=600, wall=420)
+    pts[:600, 2] = -0.05 + 0.1 * (np.arange(600) + 0.5) / 600
+    pts[:, 2] += 1.0
+    scores = floor_scores(pts, normals, np.eye(3))
+    assert scores.shape == (6,)
+    assert scores[4] == pytest.approx(540 / N, abs=2 / N)
+
+
+def test_a_room_up_record():
+    up = room_up(*room(floor=600, wall=300), hint=Y)
+    d = up.to_dict()
+    assert d["up"] == [round(float(v), 6) for v in up.up] and d["source"] == "estimated"
+    assert d["confidence"] == round(up.confidence, 4) and "warning" not in d
+    assert np.array(d["manhattan_frame"]).shape == (3, 3) and d["support"] == [
+        round(s, 4) for s in up.support
+    ]
+    assert all(v == round(v, 6) for row in d["manhattan_frame"] for v in row)
+    pts, _ = room()
+    bare = room_up(pts, np.tile(Z, (len(pts), 1)), hint=Y)  # no frame: no axes, no support
+    assert bare.support == (0.0, 0.0, 0.0)
+    assert set(bare.to_dict()) == {"up", "source", "confidence", "warning"}
