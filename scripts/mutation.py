@@ -166,7 +166,12 @@ TARGETS = (
             "tests/geometry/test_cloud.py",
         ),
     ),
-    Target("graph", "cuboidcli/geometry/graph.py", None, ("tests/geometry/test_graph.py",)),
+    Target(
+        "graph",
+        "cuboidcli/geometry/graph.py",
+        None,
+        ("tests/geometry/test_graph_edges.py", "tests/geometry/test_graph.py"),
+    ),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.
