@@ -7,8 +7,8 @@ planning around a table, a detector-style evaluation) need one box per object, l
 groups, after the fit, without changing the cuboids:
 
 1. The candidate points are the fitting points that are not the room's shell: not inliers of a floor, wall
-   or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of one, and above the floor under them
-   (:func:`floor_heights`).
+   or ceiling cuboid or of a piece of wall the shell rules left to the objects (:func:`wall_pieces`), not
+   within :data:`SHELL_CLEARANCE` voxels of one, and above the floor under them (:func:`floor_heights`).
 2. Seeds: the inliers of each object cuboid, split into the pieces that touch (neighbours within
    :data:`SEED_REACH` voxel cells). One cuboid laid over two tables gives two seeds; pieces of fewer than
    :data:`MIN_SEED_POINTS` points are no seed.
@@ -83,6 +83,15 @@ HIGH_SCORE = 0.1
 #: object boxes unchanged).
 WALL_COLOUR = 25.0
 WALL_COLOUR_THIN_M = 0.4
+#: An object cuboid that is an upright slab at most :data:`WALL_PIECE_THIN_M` thick (m), at least
+#: :data:`WALL_PIECE_M` (m) along both other sides, with its inliers' median colour within
+#: :data:`WALL_PIECE_COLOUR` (RGB) of a wall's, is a piece of wall (:func:`wall_pieces`). On the 10 real
+#: ScanNet scans (seed 0) such cuboids seeded 26 object boxes, 20 of them on walls, other structure and
+#: clutter: precision 70.0 -> 71.4 %, recall equal; the synthetic rooms' object boxes unchanged. 1.0 m
+#: instead of 1.2 m: 71.3 %; a colour bound of 25: 70.5 % (one cuboid of a wall with a door kept).
+WALL_PIECE_THIN_M = 0.15
+WALL_PIECE_M = 1.2
+WALL_PIECE_COLOUR = 30.0
 #: A box whose lowest point is within this many voxels of the floor is extended down to it.
 FLOOR_TOUCH = 3.0
 #: The score's support term is 1 - exp(-points / SCORE_POINTS): half its weight at about 280 fitting points.
@@ -251,6 +260,36 @@ def on_wall(box: Cuboid, walls: list[Cuboid]) -> bool:
     return False
 
 
+def wall_pieces(
+    cuboids: list[Cuboid], labels: np.ndarray, colors: np.ndarray | None, wall_colours: list, z: np.ndarray
+) -> set[int]:
+    """The object cuboids that are pieces of wall: upright slabs (the thinnest side at most
+    :data:`WALL_PIECE_THIN_M`, its normal within 30 degrees of level) at least :data:`WALL_PIECE_M` along both
+    other sides whose inliers' median colour (``colors`` (M, 3) of the points labelled ``labels``) is
+    within :data:`WALL_PIECE_COLOUR` of a wall's (``wall_colours``). The shell rules make a slab furniture
+    when its top stays below the room's top (a wall scanned only to mid-height, a partition, the wall
+    beside a kitchen's cupboards); furniture this large and flat has a face of its own colour."""
+    out: set[int] = set()
+    if colors is None or not wall_colours:
+        return out
+    for i, c in enumerate(cuboids):
+        if c.kind != "object":
+            continue
+        k = int(np.argmin(c.half_size))
+        sides = 2.0 * np.delete(c.half_size, k)
+        if 2.0 * c.half_size[k] > WALL_PIECE_THIN_M or sides.min() < WALL_PIECE_M:
+            continue
+        if abs(float(c.rotation[:, k] @ z)) > math.sin(math.radians(30.0)):
+            continue
+        on = labels == i
+        if on.sum() < MIN_OBJECT_POINTS:
+            continue
+        own = np.median(colors[on], axis=0)
+        if min(float(np.linalg.norm(own - w)) for w in wall_colours) <= WALL_PIECE_COLOUR:
+            out.add(i)
+    return out
+
+
 def group_objects(
     points: np.ndarray,
     labels: np.ndarray,
@@ -271,11 +310,20 @@ def group_objects(
         raise ValueError(f"{len(labels)} labels for {len(points)} points")
     R = level_frame(np.asarray(up, dtype=np.float64))  # world = R @ level, its z the room's up
     level = points @ R
-    shell = [i for i, c in enumerate(cuboids) if c.kind != "object"]
-    floors = [cuboids[i] for i in shell if cuboids[i].kind == "floor"]
     z = R[:, 2]
     if not len(points):
         return []
+    wall_ids = [i for i, c in enumerate(cuboids) if c.kind == "wall"]
+    wall_colour: dict[int, np.ndarray] = {}  # the median colour of each wall's inliers, by index in wall_ids
+    if colors is not None:
+        colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+        for j, i in enumerate(wall_ids):
+            on = labels == i
+            if on.sum() >= MIN_OBJECT_POINTS:
+                wall_colour[j] = np.median(colors[on], axis=0)
+    walled = wall_pieces(cuboids, labels, colors, list(wall_colour.values()), z)
+    shell = [i for i, c in enumerate(cuboids) if c.kind != "object" or i in walled]
+    floors = [cuboids[i] for i in shell if cuboids[i].kind == "floor"]
     if floors:  # the top surface of the floor under each point
         under = floor_heights(level, floors, R)
     else:
@@ -359,14 +407,7 @@ def group_objects(
             if merged:
                 break
 
-    walls = [c for c in cuboids if c.kind == "wall"]
-    wall_colour: dict[int, np.ndarray] = {}  # the median colour of each wall's inliers
-    if colors is not None:
-        colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
-        for j, i in enumerate(i for i, c in enumerate(cuboids) if c.kind == "wall"):
-            on = labels == i
-            if on.sum() >= MIN_OBJECT_POINTS:
-                wall_colour[j] = np.median(colors[on], axis=0)
+    walls = [cuboids[i] for i in wall_ids]
     objects = []
     for g, members in groups.items():
         lo, hi = extent(members, headings[g])
