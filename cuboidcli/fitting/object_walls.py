@@ -1,10 +1,7 @@
-"""Which boxes and cuboids of a room's objects step are the walls' own: thin scraps on a wall (a socket, a
-trim), bulges flat against a wall in its colour, and upright slabs the shell rules left to the furniture
-that have a wall's colour. Used by :mod:`cuboidcli.fitting.objects`."""
+"""Which boxes of a room's objects step are the walls' own: thin scraps on a wall (a socket, a trim) and
+bulges flat against a wall in its colour. Used by :mod:`cuboidcli.fitting.objects`."""
 
 from __future__ import annotations
-
-import math
 
 import numpy as np
 
@@ -23,16 +20,6 @@ WALL_GAP_M = 0.05
 #: object boxes unchanged).
 WALL_COLOUR = 25.0
 WALL_COLOUR_THIN_M = 0.4
-#: An object cuboid that is an upright slab at most :data:`WALL_PIECE_THIN_M` thick (m), at least
-#: :data:`WALL_PIECE_M` (m) along both other sides, with its inliers' median colour within
-#: :data:`WALL_PIECE_COLOUR` (RGB) of a wall's, is a piece of wall (:func:`wall_pieces`). On the 10 real
-#: ScanNet scans (seed 0) 4 such cuboids seeded 24 object boxes, 18 of them not on one labelled object
-#: (walls, other structure, clutter): precision 70.0 -> 71.4 %, recall equal; the synthetic rooms' object
-#: boxes unchanged. 1.0 m instead of 1.2 m: 71.3 %; a colour bound of 25: 70.5 % (a cuboid over a wall
-#: and a door, 27 from the walls' colour, is kept).
-WALL_PIECE_THIN_M = 0.15
-WALL_PIECE_M = 1.2
-WALL_PIECE_COLOUR = 30.0
 
 
 def near_wall(box: Cuboid, walls: list[Cuboid], thin_m: float) -> list[int]:
@@ -82,39 +69,3 @@ def on_wall(box: Cuboid, walls: list[Cuboid]) -> bool:
         if 2.0 * thick <= WALL_THIN_M and gap <= WALL_GAP_M and np.all(lateral <= WALL_GAP_M + WALL_THIN_M):
             return True
     return False
-
-
-def wall_pieces(
-    cuboids: list[Cuboid],
-    labels: np.ndarray,
-    colors: np.ndarray | None,
-    wall_colours: list,
-    z: np.ndarray,
-    min_points: int = 20,
-) -> set[int]:
-    """The object cuboids that are pieces of wall: upright slabs (the thinnest side at most
-    :data:`WALL_PIECE_THIN_M`, its normal within 30 degrees of level) at least :data:`WALL_PIECE_M` along both
-    other sides whose inliers' median colour (``colors`` (M, 3) of the points labelled ``labels``) is
-    within :data:`WALL_PIECE_COLOUR` of a wall's (``wall_colours``). The shell rules make a slab furniture
-    when its top stays below the room's top (a wall scanned only to mid-height, a partition, the wall
-    beside a kitchen's cupboards); furniture this large and flat has a face of its own colour. A cuboid
-    with fewer than ``min_points`` inliers tells no colour."""
-    out: set[int] = set()
-    if colors is None or not wall_colours:
-        return out
-    for i, c in enumerate(cuboids):
-        if c.kind != "object":
-            continue
-        k = int(np.argmin(c.half_size))
-        sides = 2.0 * np.delete(c.half_size, k)
-        if 2.0 * c.half_size[k] > WALL_PIECE_THIN_M or sides.min() < WALL_PIECE_M:
-            continue
-        if abs(float(c.rotation[:, k] @ z)) > math.sin(math.radians(30.0)):
-            continue
-        on = labels == i
-        if on.sum() < min_points:
-            continue
-        own = np.median(colors[on], axis=0)
-        if min(float(np.linalg.norm(own - w)) for w in wall_colours) <= WALL_PIECE_COLOUR:
-            out.add(i)
-    return out

@@ -7,9 +7,8 @@ planning around a table, a detector-style evaluation) need one box per object, l
 groups, after the fit, without changing the cuboids:
 
 1. The candidate points are the fitting points that are not the room's shell: not inliers of a floor, wall
-   or ceiling cuboid or of a piece of wall the shell rules left to the objects
-   (:func:`.object_walls.wall_pieces`), not within :data:`SHELL_CLEARANCE` voxels of one, and above the
-   floor under them (:func:`floor_heights`).
+   or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of one, and above the floor under them
+   (:func:`floor_heights`).
 2. Seeds: the inliers of each object cuboid, split into the pieces that touch (neighbours within
    :data:`SEED_REACH` voxel cells). One cuboid laid over two tables gives two seeds; pieces of fewer than
    :data:`MIN_SEED_POINTS` points are no seed.
@@ -39,7 +38,7 @@ import numpy as np
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
-from cuboidcli.fitting.object_walls import on_wall, wall_coloured, wall_pieces
+from cuboidcli.fitting.object_walls import on_wall, wall_coloured
 from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
 from cuboidcli.geometry.gravity import level_frame
 
@@ -69,9 +68,10 @@ FLOOR_REACH_M = 0.3
 #: lay on one labelled object (the rest on unannotated points, walls, other structure), and with the score
 #: bound no labelled box lost its match. A bound of 0.3 raised precision on scenes 1-3 by 1.4 / 0.8 more
 #: (seeds 0 / 1) but lost 2 of 59 objects of the 6 held-out synthetic rooms of seed 3000 (cameras). 1.0 m
-#: instead of 1.5 m with the bound 0.1: precision 71.4 -> 72.1 % (seed 0; scenes 1-3 67.8 -> 68.3), recall
-#: and the synthetic rooms' object boxes equal; with 0.2 it lost 4 of the 90 synthetic objects of seeds
-#: 1000 and 3000 counted with cameras and bare (the high wall cupboards they match score from 0.150 up).
+#: instead of 1.5 m with the bound 0.1: precision 70.0 -> 70.9 % (seed 0; scenes 1-3 65.9 -> 66.8) and
+#: 67.5 -> 68.1 % (seed 1), recall and the synthetic rooms' object boxes equal; with 0.2 it lost 4 of the
+#: 90 synthetic objects of seeds 1000 and 3000 counted with cameras and bare (the high wall cupboards they
+#: match score from 0.150 up).
 HIGH_M = 1.0
 HIGH_SCORE = 0.1
 #: A box whose lowest point is within this many voxels of the floor is extended down to it.
@@ -224,8 +224,7 @@ def group_objects(
             on = labels == i
             if on.sum() >= MIN_OBJECT_POINTS:
                 wall_colour[j] = np.median(colors[on], axis=0)
-    walled = wall_pieces(cuboids, labels, colors, list(wall_colour.values()), z, MIN_OBJECT_POINTS)
-    shell = [i for i, c in enumerate(cuboids) if c.kind != "object" or i in walled]
+    shell = [i for i, c in enumerate(cuboids) if c.kind != "object"]
     floors = [cuboids[i] for i in shell if cuboids[i].kind == "floor"]
     if floors:  # the top surface of the floor under each point
         under = floor_heights(level, floors, R)

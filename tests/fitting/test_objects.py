@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.objects import floor_heights, group_objects, on_wall, wall_pieces
+from cuboidcli.fitting.objects import floor_heights, group_objects, on_wall
 from cuboidcli.geometry.gravity import level_frame
 
 VOXEL = 0.035
@@ -173,41 +173,3 @@ def test_a_box_against_a_wall_with_the_walls_colour_is_the_walls():
     colors[-len(bulge) :] = [120.0, 80.0, 40.0]  # a wooden front
     assert len(group_objects(pts, labels, cuboids, up, VOXEL, colors)) == 4
     assert len(group_objects(pts, labels, cuboids, up, VOXEL)) == 4  # without colours nothing tells
-
-
-def _partition(width: float):
-    """The room with an upright slab standing in it, 1.6 m tall and ``width`` wide (cuboid 3, kind object,
-    as the shell rules leave a slab whose top is far below the room's), and the points' colours: all the
-    wall's (200 grey)."""
-    pts, labels, cuboids = _room()
-    slab = _grid((3.6, 2.0, 0.05), (3.6, 2.0 + width, 1.6))
-    pts = np.concatenate([pts, slab])
-    labels = np.concatenate([labels, np.full(len(slab), 3, dtype=np.int32)])
-    cuboids.append(Cuboid([3.6, 2.0 + width / 2, 0.825], [0.02, width / 2, 0.8], np.eye(3), kind="object"))
-    return pts, labels, cuboids, np.full((len(pts), 3), 200.0)
-
-
-def test_a_wide_upright_slab_with_the_walls_colour_is_wall():
-    """A 1.5 m wide partition painted like the walls is wall, not furniture: it seeds no object and its
-    points join none; painted otherwise, or narrower (a cabinet's side), it is an object."""
-    up = np.array([0.0, 0.0, 1.0])
-    pts, labels, cuboids, colors = _partition(1.5)
-    assert wall_pieces(cuboids, labels, colors, [np.full(3, 200.0)], up) == {3}
-    objects = group_objects(pts, labels, cuboids, up, VOXEL, colors)
-    assert len(objects) == 3 and all(3 not in o.cuboids for o in objects)
-    colors[labels == 3] = [120.0, 80.0, 40.0]
-    objects = group_objects(pts, labels, cuboids, up, VOXEL, colors)
-    assert len(objects) == 4 and any(o.cuboids == (3,) for o in objects)
-    pts, labels, cuboids, colors = _partition(0.8)
-    assert wall_pieces(cuboids, labels, colors, [np.full(3, 200.0)], up) == set()
-    assert len(group_objects(pts, labels, cuboids, up, VOXEL, colors)) == 4
-
-
-def test_a_level_slab_with_the_walls_colour_is_no_wall():
-    """Only upright slabs are wall: a large table top painted like the walls stays furniture."""
-    pts, labels, cuboids = _room()
-    colors = np.full((len(pts), 3), 200.0)
-    up = np.array([0.0, 0.0, 1.0])
-    cuboids[2] = Cuboid([2.0, 0.8, 0.75], [1.5, 1.3, 0.005], np.eye(3), kind="object")
-    assert wall_pieces(cuboids, labels, colors, [np.full(3, 200.0)], up) == set()
-    assert wall_pieces(cuboids, labels, None, [np.full(3, 200.0)], up) == set()
