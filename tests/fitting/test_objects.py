@@ -116,15 +116,27 @@ def test_two_tables_a_hand_apart_are_two_objects(monkeypatch):
 
 def test_scores_rank_a_standing_table_above_a_floating_scrap():
     pts, labels, cuboids = _room()
-    scrap = _grid((3.0, 3.0, 1.5), (3.3, 3.15, 1.5))  # a loose patch of points in the air
+    scrap = _grid((3.0, 3.0, 0.95), (3.3, 3.15, 0.95))  # a loose patch of points in the air
     pts = np.concatenate([pts, scrap])
     labels = np.concatenate([labels, np.full(len(scrap), -1, dtype=np.int32)])
     objects = group_objects(pts, labels, cuboids, np.array([0.0, 0.0, 1.0]), VOXEL)
     assert all(0.0 <= o.score <= 1.0 for o in objects)
     assert [o.to_dict(0)["score"] for o in objects] == [round(o.score, 4) for o in objects]
     tables = [o for o in objects if o.cuboids == (2,)]
-    (floating,) = [o for o in objects if o.box.center[2] > 1.0]
+    (floating,) = [o for o in objects if o.box.center[2] > 0.9]
     assert min(t.score for t in tables) > 3.0 * floating.score
+
+
+def test_a_low_scored_box_more_than_a_metre_up_is_left_out():
+    """A loose patch of points 1.2 m above the floor is a fixture's or a shelf's clutter, not furniture; the
+    same patch 0.9 m up stays an object."""
+    pts, labels, cuboids = _room()
+    up = np.array([0.0, 0.0, 1.0])
+    for height, kept in ((0.9, 4), (1.2, 3)):
+        scrap = _grid((3.0, 3.0, height), (3.3, 3.15, height))
+        more = np.concatenate([pts, scrap])
+        more_labels = np.concatenate([labels, np.full(len(scrap), -1, dtype=np.int32)])
+        assert len(group_objects(more, more_labels, cuboids, up, VOXEL)) == kept
 
 
 def test_a_thin_box_against_a_wall_is_the_walls():
