@@ -10,7 +10,7 @@ the sampler are built once, before the first frame (weights loading is not timed
     python benchmarks/bench_fit.py [--frames 5] [--fast] [--no-refine] [--sampler sequential]
         [--solver numerical|neural] [--weights PATH] [--hypotheses 4096] [--seed 0]
         [--local-fraction 0.75] [--max-batches 4] [--align free|gravity|manhattan]
-        [--device cpu|cuda|auto] [--log benchmarks/logs/fit_cuda.txt] [--open3d]
+        [--device cpu|cuda|auto] [--log benchmarks/logs/fit_cuda.txt] [--open3d [--open3d-voxel 0]]
 
 The first lines say where it ran: the date, the commit (with "+changes" for a working tree that differs
 from it), the device (the GPU's name on cuda), torch and the CPU. ``--log`` writes everything printed to
@@ -18,7 +18,8 @@ that file as well, for the figures quoted in the documentation.
 
 --open3d also times, on each frame, the pipeline a user would assemble from Open3D
 (:func:`cuboidcli.evaluation.baseline.planes_and_clusters`: RANSAC planes, then DBSCAN boxes, on all the
-frame's valid pixels back-projected, up = the camera's -y) and prints the ratio of the median totals.
+frame's valid pixels back-projected, up = the camera's -y, down-sampled to --open3d-voxel metres first:
+0.03 by default, 0 for every pixel) and prints the ratio of the median totals.
 
 --weights: a folder (solver_v1.pt / sampler_v2.pt inside) or a .pt file; it goes to the neural solver and
 the learned sampler (the other solvers and samplers have no weights). None = the shipped weights.
@@ -56,13 +57,13 @@ def frames(n_synth: int):
                     yield f"{sub}/{f.name}", f.depth_m(), f.camera
 
 
-def time_open3d(depth: np.ndarray, cam, seed: int) -> float:
+def time_open3d(depth: np.ndarray, cam, seed: int, voxel_m: float) -> float:
     """Seconds of the Open3D planes + DBSCAN boxes pipeline on the frame's valid pixels."""
     from cuboidcli.evaluation.baseline import planes_and_clusters
 
     points = cam.backproject_grid(depth, 1)[depth > 0]
     t = time.perf_counter()
-    planes_and_clusters(points, up=np.array([0.0, -1.0, 0.0]), seed=seed)
+    planes_and_clusters(points, up=np.array([0.0, -1.0, 0.0]), voxel_m=voxel_m, seed=seed)
     return time.perf_counter() - t
 
 
@@ -122,6 +123,7 @@ def main() -> None:
     ap.add_argument("--device", default="cpu", help="cpu | cuda | auto (cuda when there is one)")
     ap.add_argument("--log", type=Path, default=None, help="also write the output to this file")
     ap.add_argument("--open3d", action="store_true", help="also time the Open3D planes + DBSCAN pipeline")
+    ap.add_argument("--open3d-voxel", type=float, default=0.03, help="its voxel size, m (0: every pixel)")
     args = ap.parse_args()
     if args.log is not None:
         args.log.parent.mkdir(parents=True, exist_ok=True)
@@ -185,7 +187,7 @@ def main() -> None:
         rows.append([t.get(s, 0.0) for s in stages])
         extra = ""
         if args.open3d:
-            open3d_s.append(time_open3d(depth, cam, args.seed))
+            open3d_s.append(time_open3d(depth, cam, args.seed, args.open3d_voxel))
             extra = f" {open3d_s[-1]:7.3f}"
         print(
             f"{name:28s} {info.n_points:5d} {len(cubs):3d} {info.iterations:5d} "
