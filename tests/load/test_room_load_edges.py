@@ -12,6 +12,7 @@ from cuboidcli.io.sequence import read_sequence
 from cuboidcli.load.room import (
     is_room_input,
     load_room,
+    parse_up,
     points_room,
     seen_by,
     world_from_input,
@@ -126,3 +127,37 @@ def test_a_frame_saw_a_cuboid_from_ten_of_its_points():
     cloud = PointCloud(room_points(n), frames=frames, frame_names=["a", "b", "c"])
     assert seen_by(cloud, labels, 3) == [["b"], ["a"], []]
     assert seen_by(PointCloud(room_points(n)), labels, 2) == [[], []]  # a bare cloud: no frames
+
+
+def test_every_up_name_and_unusable_vectors():
+    assert [parse_up(n) for n in ("z", "y", "-y", "x")] == [
+        (0.0, 0.0, 1.0),
+        (0.0, 1.0, 0.0),
+        (0.0, -1.0, 0.0),
+        (1.0, 0.0, 0.0),
+    ]
+    for bad in ("nan,0,1", "0,inf,1", "0,0,0", "1,2", "up"):
+        with pytest.raises(InputError, match="--up"):
+            parse_up(bad)
+
+
+def test_a_sequence_is_fused_in_2_cm_voxels_and_its_hint_is_a_unit_mean(tmp_path):
+    pitch = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.5), -np.sin(0.5)], [0.0, np.sin(0.5), np.cos(0.5)]])
+    room = load_room(write_plain(tmp_path, [pose(), pose(pitch, (0.2, 0.0, 0.0))]))
+    assert room.cloud.meta["voxel_m"] == 0.02
+    ups = np.array([[0.0, -1.0, 0.0], pitch @ [0.0, -1.0, 0.0]])
+    assert np.allclose(room.up_hint, ups.mean(0) / np.linalg.norm(ups.mean(0)))
+    assert 0.0 <= room.load_seconds < 60.0 and room.meta["load_s"] == round(room.load_seconds, 6)
+
+
+def test_an_object_array_is_not_a_room_and_a_list_of_points_is(tmp_path):
+    np.save(tmp_path / "objects.npy", np.empty((10, 3), dtype=object), allow_pickle=True)
+    assert not is_room_input(tmp_path / "objects.npy")
+    room = points_room(room_points().tolist())
+    assert room.cloud.points.shape == (400, 3) and 0.0 <= room.load_seconds < 60.0
+
+
+def test_the_levelled_world_takes_the_horizontal_part_of_a_tilted_room_axis():
+    axes = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.1, 0.0]])  # column 1 leans 5.7 deg towards up
+    r = world_from_input(np.array([0.0, 0.0, 1.0]), axes)[:3, :3]
+    assert np.allclose(r[0], [1.0, 0.0, 0.0]) and np.allclose(r @ r.T, np.eye(3))
