@@ -55,7 +55,9 @@ def plausibility(extent: float) -> float:
     return float(np.clip((extent - lo) / (full - lo), 0.0, 1.0) * min(1.0, hi / extent) ** 2)
 
 
-@pytest.mark.parametrize(("height", "expected"), [(0.5, 0.0), (1.2, 0.5), (3.0, 1.0), (8.0, 0.25)])
+@pytest.mark.parametrize(
+    ("height", "expected"), [(0.5, 0.0), (0.9, 0.25), (1.2, 0.5), (3.0, 1.0), (8.0, 0.25)]
+)
 def test_a_floor_scores_its_share_times_the_plausibility_of_the_room_height(height, expected):
     assert plausibility(height) == pytest.approx(expected)
     scores = floor_scores(*room(height=height), np.eye(3))
@@ -254,3 +256,43 @@ def test_a_room_up_record():
     bare = room_up(pts, np.tile(Z, (len(pts), 1)), hint=Y)  # no frame: no axes, no support
     assert bare.support == (0.0, 0.0, 0.0)
     assert set(bare.to_dict()) == {"up", "source", "confidence", "warning"}
+
+
+def floor_and_top(n_floor: int, tilt_deg: float = 4.0, n_top: int = 20, normals_up: bool = False):
+    """``n_floor`` points on a floor tilted ``tilt_deg`` about x (normals along it, or along z when
+    ``normals_up``), and ``n_top`` points 3 m up facing x: a bare floor under a far ceiling strip."""
+    rng = np.random.default_rng(8)
+    n = tilted(tilt_deg)
+    xy = rng.uniform(0, [3.0, 1.0], (n_floor, 2))
+    floor = np.c_[xy, -(xy[:, 1] * n[1]) / n[2]]
+    top = np.c_[rng.uniform(0, 3, (n_top, 2)), np.full(n_top, 3.0)]
+    normals = np.concatenate([np.tile(Z if normals_up else n, (n_floor, 1)), np.tile(X, (n_top, 1))])
+    return np.concatenate([floor, top]), normals, n
+
+
+def test_a_floor_needs_twenty_facing_points():
+    pts, normals, n = floor_and_top(20, tilt_deg=1.0)  # all within the 3 cm of its level
+    assert abs(floor_normal(pts, normals, Z) @ n) > np.cos(np.deg2rad(0.01))
+    pts, normals, _ = floor_and_top(19, tilt_deg=1.0)
+    assert np.array_equal(floor_normal(pts, normals, Z), Z)
+
+
+def test_a_floor_of_many_points_needs_one_percent_of_them():
+    pts, normals, n = floor_and_top(60, tilt_deg=1.0, n_top=9000)  # 60 of 9060 facing up: under 1 %
+    assert np.array_equal(floor_normal(pts, normals, Z), Z)
+    pts, normals, n = floor_and_top(120, tilt_deg=1.0, n_top=9000)
+    assert abs(floor_normal(pts, normals, Z) @ n) > np.cos(np.deg2rad(0.01))
+
+
+def test_a_slice_tilted_beyond_15_degrees_is_no_floor():
+    # points on an 18 degree ramp whose normals claim to face up: the refit plane is the ramp, too steep
+    pts, normals, _ = floor_and_top(400, tilt_deg=18.0, normals_up=True)
+    assert np.array_equal(floor_normal(pts, normals, Z), Z)
+    pts, normals, n = floor_and_top(400, tilt_deg=12.0, normals_up=True)
+    assert abs(floor_normal(pts, normals, Z) @ n) > np.cos(np.deg2rad(0.01))
+
+
+def test_a_single_point_or_a_near_wall_in_front_is_a_camera_view():
+    assert is_camera_view(np.array([[0.1, 0.0, 2.0]]))
+    assert is_camera_view(camera_view(80, 0, 0.0) * 0.06)  # a wall 12 cm in front
+    assert not is_camera_view(camera_view(80, 0, 0.0) * 0.05)  # 10 cm: too near for a depth camera
