@@ -97,6 +97,20 @@ def test_a_fitter_is_built_once_and_gives_what_fit_gives(room_depth, nyu_camera,
     assert other_seed.settings["seed"] == 5 and first.settings["seed"] == 0
 
 
+def test_the_settings_say_which_generator_and_backend_a_fit_ran_on(room_depth, nyu_camera, room_result):
+    depth, _ = room_depth
+    assert (room_result.settings["random_generator"], room_result.settings["backend_used"]) == (
+        "numpy",
+        "numba",
+    )
+    on_tensors = cb.fit(depth, nyu_camera, seed=0, **{**QUICK, "backend": "torch"})
+    assert (on_tensors.settings["random_generator"], on_tensors.settings["backend_used"]) == (
+        "torch",
+        "torch",
+    )
+    assert on_tensors.settings["backend"] == "torch" and room_result.settings["backend"] == "auto"
+
+
 def test_bad_input_is_a_one_line_value_error(room_depth, nyu_camera):
     depth, _ = room_depth
     with pytest.raises(ValueError, match="the depth map is 640x480 but the camera is 320x240"):

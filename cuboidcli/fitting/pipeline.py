@@ -82,6 +82,11 @@ class FitInfo:
     """Things the user should know about this fit (one line each)."""
     kind: str = "frame"
     """``frame`` or ``room``: the input's kind."""
+    random_generator: str = "torch"
+    """Whose generator drew the fit's random numbers: "numpy" (an input fitted on numpy arrays) or "torch"
+    (on tensors); the same seed gives other cuboids with the other one."""
+    backend_used: str = ""
+    """The scoring backend the fit ran on (``config.backend`` resolved: numba, torch, hybrid or room)."""
     labels: np.ndarray | None = None
     """(N,) int32 per fitting point: k >= 0 inlier of cuboid k, -1 none, -2 hidden by or inside a cuboid."""
     fit_points: np.ndarray | None = None
@@ -161,6 +166,8 @@ def fit_points(
     )
     sp = score_params(config)
     backend = prep.backend or backend_for(config.backend, device_of(pts))
+    info.random_generator = "torch" if arrays.is_tensor(pts) else "numpy"
+    info.backend_used = getattr(backend, "name", type(backend).__name__)
     if grid is not None:
         backend.bind_cells(pts, grid.cells)
     gen = arrays.generator(config.seed, pts)  # numpy's for numpy arrays, torch's for tensors

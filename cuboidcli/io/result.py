@@ -113,11 +113,13 @@ def fit_info_record(info) -> dict:
 
 def settings_record(config, info, solver_name: str, sampler_name: str, extra: dict | None = None) -> dict:
     """The ``settings`` entry: the FitConfig's fields as this input's kind reads them (``config`` resolved
-    for it), the Theta used, the solver's and sampler's names and ``extra`` (the weights used, how the
-    input was read)."""
+    for it), the Theta used, whose random generator and which scoring backend the fit ran on, the solver's
+    and sampler's names and ``extra`` (the weights used, how the input was read)."""
     return {
         **config.to_dict(info.kind),
         "theta_used": info.theta,
+        "random_generator": info.random_generator,
+        "backend_used": info.backend_used,
         "solver_name": solver_name,
         "sampler_name": sampler_name,
         **(extra or {}),

@@ -40,6 +40,8 @@ def test_fit_writes_schema_json(tmp_path, room_png):
     np.testing.assert_allclose(R @ R.T, np.eye(3), atol=1e-5)
     assert c["id"] == 0 and len(c["quat_wxyz"]) == 4 and c["inlier_gain"] > d["settings"]["theta_used"]
     assert d["settings"]["seed"] == 3 and d["settings"]["hypotheses"] == 256
+    # what the seed's cuboids depend on beyond the options: the generator and the backend used
+    assert (d["settings"]["random_generator"], d["settings"]["backend_used"]) == ("numpy", "numba")
     assert d["timing_s"]["total"] > 0 and d["input"]["depth_scale"] == 0.001
     assert "cuboids" in r.output and "wrote" in r.output
     # deterministic with --seed

@@ -246,6 +246,8 @@ def _info(**kwargs) -> FitInfo:
         timing_s={"sample": 0.2, "total": 0.5},
         align="manhattan",
         aligned=["manhattan", "gravity"],
+        random_generator="numpy",
+        backend_used="numba",
         warnings=["only 0.5 % of depth pixels are valid"],
     )
     return replace(info, **kwargs)
@@ -269,6 +271,8 @@ def test_frame_result_records_the_settings_and_what_happened():
     assert result.settings == {
         **config.to_dict("frame"),
         "theta_used": 41.4,
+        "random_generator": "numpy",
+        "backend_used": "numba",
         "solver_name": "numerical",
         "sampler_name": "sequential",
         "weights": "w.pt",
