@@ -22,8 +22,9 @@ groups, after the fit, without changing the cuboids:
 6. Each object gets a score in [0, 1], how sure the grouping is that the box holds one object
    (:func:`object_score`); detection-style evaluations rank the boxes by it.
 7. Boxes that are the wall's own (:func:`on_wall`; thicker ones flat against a wall when they have its
-   colour, :data:`WALL_COLOUR`) and low-scored boxes high above the floor (:data:`HIGH_M`,
-   :data:`HIGH_SCORE`) are left out.
+   colour, :data:`WALL_COLOUR`), low-scored boxes high above the floor (:data:`HIGH_M`,
+   :data:`HIGH_SCORE`) and flat patches of floor that the floor's cuboids missed
+   (:data:`FLOOR_PATCH_TOP_M`) are left out.
 
 On the synthetic room scans (3 rooms, 31 objects) these boxes recall 67.7 % of the ground-truth furniture
 boxes at 3D IoU 0.25 where the parts recall 38.7 % (docs/scenes.md).
@@ -78,6 +79,16 @@ WALL_GAP_M = 0.05
 #: match score from 0.150 up).
 HIGH_M = 1.0
 HIGH_SCORE = 0.1
+#: A box whose top is at most :data:`FLOOR_PATCH_TOP_M` (m) above its floor, whose points lie in a
+#: horizontal layer at most :data:`FLOOR_PATCH_LAYER_M` thick (10th to 90th percentile of their heights)
+#: and half of them at most :data:`FLOOR_PATCH_MEDIAN_M` above the floor is a piece of the floor that the
+#: floor's cuboids missed (a real floor bends and steps: ScanNet's such patches stand 6-10 cm above the
+#: fitted floor, just over the shell's clearance), not furniture. The median bound keeps the lid of a low
+#: box whose sides are hidden (two synthetic storage boxes at 11 and 13 cm). On the 10 real ScanNet scans
+#: (seed 0) it left out 11 boxes, none on a labelled object: precision 70.9 -> 72.8 %, recall equal.
+FLOOR_PATCH_TOP_M = 0.3
+FLOOR_PATCH_LAYER_M = 0.1
+FLOOR_PATCH_MEDIAN_M = 0.1
 #: A box at most :data:`WALL_COLOUR_THIN_M` thick (m) lying flat against a wall (within :data:`WALL_GAP_M`)
 #: whose points' median colour is within this distance (RGB, 0-255) of the wall's inliers' median colour is
 #: the wall's: a bulge, a bent stretch or the reveal of a window that the wall's cuboid left out. A cabinet
@@ -237,6 +248,13 @@ def _wall_coloured(
     )
 
 
+def is_floor_patch(heights: np.ndarray, top: float) -> bool:
+    """Whether a group whose points stand ``heights`` (N,) above the floor under each and whose box's top
+    is ``top`` above its floor is a patch of the floor (:data:`FLOOR_PATCH_TOP_M`)."""
+    p10, p50, p90 = np.percentile(heights, [10, 50, 90])
+    return top <= FLOOR_PATCH_TOP_M and p90 - p10 <= FLOOR_PATCH_LAYER_M and p50 <= FLOOR_PATCH_MEDIAN_M
+
+
 def on_wall(box: Cuboid, walls: list[Cuboid]) -> bool:
     """Whether ``box`` is part of a wall rather than something in the room: at most :data:`WALL_THIN_M`
     thick along a wall's normal, within :data:`WALL_GAP_M` of that wall and with its centre over the wall's
@@ -381,7 +399,9 @@ def group_objects(
         floor_z = float(np.median(under_q[members]))
         score = object_score(q[members] @ _yaw_matrix(headings[g]), lo, hi, voxel_m, lo[2] <= floor_z)
         high = lo[2] - floor_z > HIGH_M and score < HIGH_SCORE
-        if high or on_wall(box, walls) or _wall_coloured(box, colors, idx[members], walls, wall_colour):
+        flat = is_floor_patch(q[members, 2] - under_q[members], float(hi[2] - floor_z))
+        wall_piece = on_wall(box, walls) or _wall_coloured(box, colors, idx[members], walls, wall_colour)
+        if flat or high or wall_piece:
             continue
         objects.append(SceneObject(box, tuple(sorted(parts)), len(members), score))
     objects.sort(key=lambda o: -o.points)

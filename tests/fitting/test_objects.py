@@ -173,3 +173,31 @@ def test_a_box_against_a_wall_with_the_walls_colour_is_the_walls():
     colors[-len(bulge) :] = [120.0, 80.0, 40.0]  # a wooden front
     assert len(group_objects(pts, labels, cuboids, up, VOXEL, colors)) == 4
     assert len(group_objects(pts, labels, cuboids, up, VOXEL)) == 4  # without colours nothing tells
+
+
+def test_a_flat_patch_just_above_the_floor_is_the_floors():
+    """A stretch of floor 8 cm above the floor cuboid (a real floor bends and steps) is left out; a low box
+    with height in it (a footstool, 0.25 m), the lid of a box 15 cm high whose sides are hidden and a
+    raised layer 0.4 m up stay objects."""
+    pts, labels, cuboids = _room()
+    up = np.array([0.0, 0.0, 1.0])
+    base = len(group_objects(pts, labels, cuboids, up, VOXEL))
+
+    def with_points(more):
+        return group_objects(
+            np.concatenate([pts, more]),
+            np.concatenate([labels, np.full(len(more), -1, dtype=np.int32)]),
+            cuboids,
+            up,
+            VOXEL,
+        )
+
+    patch = _grid((2.5, 2.5, 0.08), (3.4, 3.3, 0.08))
+    assert len(with_points(patch)) == base
+    seat, side = _grid((2.5, 2.5, 0.25), (2.9, 2.9, 0.25)), _grid((2.5, 2.5, 0.08), (2.5, 2.9, 0.22))
+    stool = np.concatenate([seat, side])
+    assert len(with_points(stool)) == base + 1
+    lid = _grid((2.5, 2.5, 0.15), (3.0, 3.0, 0.15))
+    assert len(with_points(lid)) == base + 1
+    shelf = _grid((2.5, 2.5, 0.4), (3.4, 3.3, 0.4))
+    assert len(with_points(shelf)) == base + 1

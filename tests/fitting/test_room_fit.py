@@ -251,3 +251,22 @@ def test_a_low_upright_slab_is_furniture_not_a_wall():
     turned = Cuboid([0.45, 1.5, 3.5], [0.45, 1.2, 0.005], np.eye(3), kind="wall")  # up is +x here
     low_walls_are_furniture([turned], points[:, ::-1], np.array([1.0, 0.0, 0.0]))
     assert turned.kind == "object"
+
+
+def test_the_real_living_room_fragment_stands_upright_without_an_up_hint():
+    """The real living-room fragment is stored in a camera's frame (y down): fitted with no --up, its large
+    wall is a wall (not a ceiling, as with z up), and the fit says in one warning that its up is unsure."""
+    from tests.conftest import SHARED_DATA
+
+    path = SHARED_DATA / "scans" / "livingroom_fragment.pcd"
+    if not path.is_file():
+        pytest.skip("../shared/data/scans is not here")
+    import cuboidcli
+
+    doc = cuboidcli.Fitter(seed=0).fit(path).record.to_json()
+    assert doc["up"]["source"] == "camera"
+    assert np.dot(doc["up"]["up"], [0.0, -1.0, 0.0]) > 0.99
+    largest = max(doc["cuboids"], key=lambda c: c["inlier_gain"])
+    assert largest["kind"] == "wall"
+    assert not any(c["kind"] == "floor" for c in doc["cuboids"])
+    assert "up direction unsure" in doc["up"]["warning"]
