@@ -245,18 +245,22 @@ def room_gains(
     params: tuple,
     prune_below: float = -np.inf,
     bound: np.ndarray | None = None,
+    order: np.ndarray | None = None,
 ) -> np.ndarray:
     """Inlier-count gains (H,) of the hypotheses over ``state`` (N,, block order) under the room's
     visibility; -inf for hypotheses that provably stay below ``prune_below``. ``bound``: the
-    :meth:`RoomPoints.block_bound` of ``state`` when already computed.
+    :meth:`RoomPoints.block_bound` of ``state`` when already computed; ``order``: the blocks sorted by
+    it, largest first (``np.argsort(-bound, kind="stable")``), when already computed with it.
 
     Each hypothesis visits the blocks it reaches in the order of their bounds, largest first: what it can
     still gain then shrinks fastest, and one that stays below ``prune_below`` is abandoned sooner (on real
     scans about a fifth fewer points scored; the gains are the same sums in another order)."""
     out = np.empty(len(centers), dtype=np.float64)
     state = np.ascontiguousarray(state, np.float64)
-    bound = room.block_bound(state) if bound is None else bound
-    order = np.argsort(-bound, kind="stable")
+    if bound is None:
+        bound, order = room.block_bound(state), None
+    if order is None:
+        order = np.argsort(-bound, kind="stable")
     c, a, R = (np.ascontiguousarray(x, np.float64) for x in (centers, half_sizes, rotations))
     _room_gains(
         room.points, room.views, state, room.start, room.lo, room.hi, room.hull_lo, room.hull_hi, bound,
