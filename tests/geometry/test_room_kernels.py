@@ -234,15 +234,24 @@ def test_a_turned_box_visits_every_block_of_its_faces():
     assert got == pytest.approx([0.0, want, 0.0], abs=1e-9)
 
 
-def test_the_corners_of_a_big_turned_box_are_in_its_near_zone():
-    """Its bounding box reaches each corner: a point on every corner of a box 4 x 5 x 6 m turned about all
-    three axes, each corner its own block, counts f_I(0)."""
-    a, b, g = np.deg2rad([45.0, 20.0, 45.0])
+def _turned(ax: float, ay: float, az: float) -> np.ndarray:
+    a, b, g = np.deg2rad([ax, ay, az])
     rx = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
     ry = np.array([[np.cos(b), 0, np.sin(b)], [0, 1, 0], [-np.sin(b), 0, np.cos(b)]])
     rz = np.array([[np.cos(g), -np.sin(g), 0], [np.sin(g), np.cos(g), 0], [0, 0, 1]])
-    rot = rz @ ry @ rx
-    assert np.abs(rot).min() > 0.32
+    return rz @ ry @ rx
+
+
+CYCLE = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])  # the axes permuted: a proper rotation
+SMALL = _turned(10.0, 8.0, 12.0)
+
+
+@pytest.mark.parametrize("rot", [_turned(45.0, 20.0, 45.0), SMALL, CYCLE @ SMALL, CYCLE.T @ SMALL])
+def test_the_corners_of_a_big_turned_box_are_in_its_near_zone(rot):
+    """Its bounding box reaches each corner: a point on every corner of a box 4 x 5 x 6 m turned about all
+    three axes (by much, or a little from each order of the axes), each corner its own
+    block, counts f_I(0)."""
+    assert np.allclose(rot @ rot.T, np.eye(3)) and np.linalg.det(rot) == pytest.approx(1.0)
     half = np.array([2.0, 2.5, 3.0])
     signs = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], dtype=np.float64)
     pts = world(signs * half, CENTER, rot)
@@ -316,15 +325,18 @@ def test_pruning_counts_only_the_blocks_a_hypothesis_visits():
 
 
 def test_views_pruning_counts_only_the_blocks_seen_through_or_near_the_box():
-    # as above with viewpoints beside their points: the far block is neither near nor seen through the box
+    # 5 points 10 cm off the box (one block, bound 5) and one 2.8 m away (bound 1), each seen from beside
+    # itself: the far block is neither near nor seen through the box, so a threshold of 5.3 prunes the box
+    # (with that block counted, 4.6 + 1 could still reach it)
     half = np.array([0.2, 0.2, 0.2])
-    good = np.c_[np.full(10, 0.3), np.linspace(-0.1, 0.1, 10), np.zeros(10)]
-    far = np.c_[np.full(8, 3.0), np.linspace(-0.1, 0.1, 8), np.zeros(8)]
-    local = np.concatenate([good, far])
-    room = RoomPoints.build(world(local), world(local + [0.5, 0.0, 0.0]), "views")
-    got = _gains(room, np.zeros(18), CENTER[None], half[None], R[None], prune_below=12.0)
+    good = np.c_[np.full(5, 0.3), np.linspace(-0.01, 0.01, 5), np.zeros(5)]
+    local = np.concatenate([good, [[3.0, 0.0, 0.0]]])
+    views = np.concatenate([np.tile([0.8, 0.0, 0.0], (5, 1)), [[3.5, 0.0, 0.0]]])
+    room = RoomPoints.build(world(local), world(views), "views")
+    assert len(room.start) == 3
+    got = _gains(room, np.zeros(6), CENTER[None], half[None], R[None], prune_below=5.3)
     assert got.tolist() == [-np.inf]
-    assert _gains(room, np.zeros(18), CENTER[None], half[None], R[None]) == pytest.approx([10 * f_i(0.01)])
+    assert _gains(room, np.zeros(6), CENTER[None], half[None], R[None]) == pytest.approx([5 * f_i(0.01)])
 
 
 def test_blocks_are_half_metre_cells_and_viewpoint_cells():
@@ -409,12 +421,12 @@ def test_the_refinement_s_rotation_is_rodrigues():
 def test_the_surface_loss_is_the_mean_squared_distance_to_the_faces():
     x = np.r_[CENTER, 0.0, 0.0, 0.0, 1.0, 0.5, 0.25]
     local = np.array(
-        [[2.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.5, 0.0, 0.1], [1.5, 0.0, -0.5], [-0.5, 0.0, -0.1]]
+        [[2.0, 0.0, 0.0], [0.0, -1.0, 0.0], [0.5, 0.0, 0.1], [1.5, 0.0, -0.5], [-0.5, 0.0, -0.15]]
     )
-    # 1 m out along x; 50 cm out along -y; inside, 15 cm from a z face (either); off an edge by 0.5 and 0.25
+    # 1 m out along x; 50 cm out along -y; inside, 15 and 10 cm from a z face; off an edge by 0.5 and 0.25
     grad = np.full(9, 7.0)
     loss = _surface_loss(CENTER + local, x, grad)
-    assert loss == pytest.approx((1.0 + 0.25 + 0.0225 + 0.3125 + 0.0225) / 5)
+    assert loss == pytest.approx((1.0 + 0.25 + 0.0225 + 0.3125 + 0.01) / 5)
     assert np.all(grad[3:6] == 0.0)  # the rotation's gradient is left to the caller
     # the gradient in the centre and half-sizes is the loss's own
     for k in (0, 1, 2, 6, 7, 8):
