@@ -42,6 +42,9 @@ class Target:
     """Only the bodies of these top-level functions / methods (None: the whole module)."""
     tests: tuple[str, ...]
     """pytest arguments that should kill its mutants, fastest first."""
+    env: tuple[tuple[str, str], ...] = ()
+    """Environment variables of the test process (NUMBA_DISABLE_JIT=1: numba kernels run as Python, so a
+    mutant costs no compilation; their tests must then keep math.exp's arguments finite)."""
 
 
 TARGETS = (
@@ -161,6 +164,7 @@ TARGETS = (
         "cuboidcli/geometry/cloud.py",
         None,
         (
+            "tests/geometry/test_cloud_more.py",
             "tests/geometry/test_cloud_scores.py",
             "tests/geometry/test_free_side.py",
             "tests/geometry/test_cloud.py",
@@ -171,6 +175,26 @@ TARGETS = (
         "cuboidcli/geometry/graph.py",
         None,
         ("tests/geometry/test_graph_edges.py", "tests/geometry/test_graph.py"),
+    ),
+    # the room's shell (floor, walls, ceiling) told from what lies beyond a slab, and each box's kind
+    Target(
+        "shell",
+        "cuboidcli/fitting/shell.py",
+        None,
+        (
+            "tests/fitting/test_shell_edges.py",
+            "tests/fitting/test_room_slabs.py",
+            "tests/fitting/test_kinds.py",
+        ),
+    ),
+    # the room scoring kernels, run as Python: compiling them for every mutant would take 20-30 s each, and
+    # tests/geometry/test_room_scoring.py cannot run without numba (its far points overflow Python's math.exp)
+    Target(
+        "room_kernels",
+        "cuboidcli/geometry/room.py",
+        None,
+        ("tests/geometry/test_room_kernels.py",),
+        (("NUMBA_DISABLE_JIT", "1"),),
     ),
 )
 
@@ -364,9 +388,10 @@ class TestRunner:
         self.repo = repo
         self.proc: subprocess.Popen | None = None
         self.lines: queue.Queue[str] = queue.Queue()
+        self.env: tuple[tuple[str, str], ...] = ()
 
     def _start(self) -> subprocess.Popen:
-        env = {**os.environ, "PYTHONPATH": str(self.repo), "PYTHONDONTWRITEBYTECODE": "1"}
+        env = {**os.environ, **dict(self.env), "PYTHONPATH": str(self.repo), "PYTHONDONTWRITEBYTECODE": "1"}
         proc = subprocess.Popen(
             [sys.executable, "-c", WORKER],
             cwd=self.repo,
@@ -393,8 +418,14 @@ class TestRunner:
             self.proc.wait()
             self.proc = None
 
-    def run(self, tests: tuple[str, ...], timeout: float) -> tuple[bool, float]:
-        """(the tests pass, seconds). A timeout or a crashed worker counts as failing tests."""
+    def run(
+        self, tests: tuple[str, ...], timeout: float, env: tuple[tuple[str, str], ...] = ()
+    ) -> tuple[bool, float]:
+        """(the tests pass, seconds). A timeout or a crashed worker counts as failing tests. ``env``: extra
+        environment variables of the worker (a new worker when they change)."""
+        if env != self.env:
+            self.stop()
+            self.env = env
         if self.proc is None or self.proc.poll() is not None:
             self.proc = self._start()
         args = ["-x", "-q", "-p", "no:cacheprovider", "--no-header", *tests]
@@ -433,7 +464,7 @@ def main(argv: list[str] | None = None) -> int:
         for target in targets:
             path = repo / target.path
             original = path.read_text(encoding="utf-8")
-            ok, seconds = runner.run(target.tests, args.timeout * 3)
+            ok, seconds = runner.run(target.tests, args.timeout * 3, target.env)
             if not ok:
                 print(f"{target.name}: the tests fail on the unmutated code; fix them first", flush=True)
                 return 2
@@ -445,7 +476,7 @@ def main(argv: list[str] | None = None) -> int:
                     continue
                 path.write_text(mutated_source(original, m), encoding="utf-8")
                 try:
-                    survived, seconds = runner.run(target.tests, args.timeout)
+                    survived, seconds = runner.run(target.tests, args.timeout, target.env)
                 finally:
                     path.write_text(original, encoding="utf-8")
                 total += 1
