@@ -21,10 +21,10 @@ groups, after the fit, without changing the cuboids:
    :data:`FLOOR_TOUCH` voxels of the floor stands on it.
 6. Each object gets a score in [0, 1], how sure the grouping is that the box holds one object
    (:func:`object_score`); detection-style evaluations rank the boxes by it.
-7. Boxes that are the wall's own (:func:`on_wall`; thicker ones flat against a wall when they have its
-   colour, :data:`WALL_COLOUR`), low-scored boxes high above the floor (:data:`HIGH_M`,
-   :data:`HIGH_SCORE`) and flat patches of floor that the floor's cuboids missed
-   (:data:`FLOOR_PATCH_TOP_M`) are left out.
+7. Boxes that are the wall's own (:func:`~cuboidcli.fitting.not_objects.on_wall`; thicker ones flat
+   against a wall when they have its colour, :func:`~cuboidcli.fitting.not_objects.wall_coloured`),
+   low-scored boxes high above the floor (:data:`HIGH_M`, :data:`HIGH_SCORE`) and flat patches of floor
+   that the floor's cuboids missed (:func:`~cuboidcli.fitting.not_objects.is_floor_patch`) are left out.
 
 On the synthetic room scans (3 rooms, 31 objects) these boxes recall 67.7 % of the ground-truth furniture
 boxes at 3D IoU 0.25 where the parts recall 38.7 % (docs/scenes.md).
@@ -39,6 +39,7 @@ import numpy as np
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
+from cuboidcli.fitting.not_objects import is_floor_patch, on_wall, wall_coloured
 from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
 from cuboidcli.geometry.gravity import level_frame
 
@@ -63,11 +64,6 @@ MERGE_OVERLAP = 0.9
 #: A point's floor is the highest floor cuboid whose footprint comes this close to it (m), else the nearest
 #: (the lowest instead lost one of 31 synthetic objects on the bare clouds).
 FLOOR_REACH_M = 0.3
-#: A box at most this thick (m) along a wall's normal and within :data:`WALL_GAP_M` (m) of the wall is the
-#: wall's (:func:`on_wall`). On the 10 real ScanNet scans (2 seeds) 21 of 57 such boxes lay on one labelled
-#: object (mostly fragments of doors and windows), against 62 % of all object boxes.
-WALL_THIN_M = 0.15
-WALL_GAP_M = 0.05
 #: A box whose bottom is more than :data:`HIGH_M` (m) above its floor and whose score is below
 #: :data:`HIGH_SCORE` is left out: on the 10 real ScanNet scans (2 seeds) 33 % of the boxes more than 1 m up
 #: lay on one labelled object (the rest on unannotated points, walls, other structure), and with the score
@@ -79,24 +75,6 @@ WALL_GAP_M = 0.05
 #: match score from 0.150 up).
 HIGH_M = 1.0
 HIGH_SCORE = 0.1
-#: A box whose top is at most :data:`FLOOR_PATCH_TOP_M` (m) above its floor, whose points lie in a
-#: horizontal layer at most :data:`FLOOR_PATCH_LAYER_M` thick (10th to 90th percentile of their heights)
-#: and half of them at most :data:`FLOOR_PATCH_MEDIAN_M` above the floor is a piece of the floor that the
-#: floor's cuboids missed (a real floor bends and steps: ScanNet's such patches stand 6-10 cm above the
-#: fitted floor, just over the shell's clearance), not furniture. The median bound keeps the lid of a low
-#: box whose sides are hidden (two synthetic storage boxes at 11 and 13 cm). On the 10 real ScanNet scans
-#: (seed 0) it left out 11 boxes, none on a labelled object: precision 70.9 -> 72.8 %, recall equal.
-FLOOR_PATCH_TOP_M = 0.3
-FLOOR_PATCH_LAYER_M = 0.1
-FLOOR_PATCH_MEDIAN_M = 0.1
-#: A box at most :data:`WALL_COLOUR_THIN_M` thick (m) lying flat against a wall (within :data:`WALL_GAP_M`)
-#: whose points' median colour is within this distance (RGB, 0-255) of the wall's inliers' median colour is
-#: the wall's: a bulge, a bent stretch or the reveal of a window that the wall's cuboid left out. A cabinet
-#: or a door against the wall is painted or lit otherwise; a box thicker than :data:`WALL_THIN_M` needs
-#: the colour to tell (scenes 1-3, seed 0: precision 63.7 -> 65.9 %, recall equal; the synthetic rooms'
-#: object boxes unchanged).
-WALL_COLOUR = 25.0
-WALL_COLOUR_THIN_M = 0.4
 #: A box whose lowest point is within this many voxels of the floor is extended down to it.
 FLOOR_TOUCH = 3.0
 #: The score's support term is 1 - exp(-points / SCORE_POINTS): half its weight at about 280 fitting points.
@@ -214,62 +192,6 @@ def floor_heights(level: np.ndarray, floors: list[Cuboid], R: np.ndarray) -> np.
     dist, height = np.array(dist), np.array(height)
     near = dist <= np.maximum(dist.min(0), FLOOR_REACH_M)
     return np.where(near, height, -np.inf).max(0)
-
-
-def near_wall(box: Cuboid, walls: list[Cuboid], thin_m: float) -> list[int]:
-    """The indices of ``walls`` that ``box`` lies flat against: at most ``thin_m`` thick along the wall's
-    normal, within :data:`WALL_GAP_M` of it and with its centre over its rectangle (grown by
-    :data:`WALL_GAP_M` + ``thin_m``)."""
-    out = []
-    for i, w in enumerate(walls):
-        k = int(np.argmin(w.half_size))
-        n = w.rotation[:, k]
-        local = (box.center - w.center) @ w.rotation
-        thick = float(np.sum(np.abs(box.rotation.T @ n) * box.half_size))
-        gap = abs(local[k]) - w.half_size[k] - 2.0 * thick
-        lateral = np.delete(np.abs(local) - w.half_size, k)
-        if 2.0 * thick <= thin_m and gap <= WALL_GAP_M and np.all(lateral <= WALL_GAP_M + thin_m):
-            out.append(i)
-    return out
-
-
-def _wall_coloured(
-    box: Cuboid, colors: np.ndarray | None, members: np.ndarray, walls: list[Cuboid], wall_colour: dict
-) -> bool:
-    """Whether ``box`` lies flat against a wall (:func:`near_wall`, :data:`WALL_COLOUR_THIN_M`) and its
-    points ``members`` (indices into ``colors``) have that wall's colour (``wall_colour``: {index in
-    ``walls``: (3,) median colour of its inliers}) within :data:`WALL_COLOUR`."""
-    if colors is None or not wall_colour:
-        return False
-    own = np.median(colors[members], axis=0)
-    return any(
-        j in wall_colour and np.linalg.norm(own - wall_colour[j]) <= WALL_COLOUR
-        for j in near_wall(box, walls, WALL_COLOUR_THIN_M)
-    )
-
-
-def is_floor_patch(heights: np.ndarray, top: float) -> bool:
-    """Whether a group whose points stand ``heights`` (N,) above the floor under each and whose box's top
-    is ``top`` above its floor is a patch of the floor (:data:`FLOOR_PATCH_TOP_M`)."""
-    p10, p50, p90 = np.percentile(heights, [10, 50, 90])
-    return top <= FLOOR_PATCH_TOP_M and p90 - p10 <= FLOOR_PATCH_LAYER_M and p50 <= FLOOR_PATCH_MEDIAN_M
-
-
-def on_wall(box: Cuboid, walls: list[Cuboid]) -> bool:
-    """Whether ``box`` is part of a wall rather than something in the room: at most :data:`WALL_THIN_M`
-    thick along a wall's normal, within :data:`WALL_GAP_M` of that wall and with its centre over the wall's
-    rectangle (grown by :data:`WALL_GAP_M` + :data:`WALL_THIN_M`). On real scans such boxes are the wall's
-    own scraps (sockets, trims, the part of a wall the fit left to no cuboid)."""
-    for w in walls:
-        k = int(np.argmin(w.half_size))
-        n = w.rotation[:, k]
-        local = (box.center - w.center) @ w.rotation
-        thick = float(np.sum(np.abs(box.rotation.T @ n) * box.half_size))  # half the box's extent along n
-        gap = abs(local[k]) - w.half_size[k] - 2.0 * thick
-        lateral = np.delete(np.abs(local) - w.half_size, k)
-        if 2.0 * thick <= WALL_THIN_M and gap <= WALL_GAP_M and np.all(lateral <= WALL_GAP_M + WALL_THIN_M):
-            return True
-    return False
 
 
 def group_objects(
@@ -400,7 +322,7 @@ def group_objects(
         score = object_score(q[members] @ _yaw_matrix(headings[g]), lo, hi, voxel_m, lo[2] <= floor_z)
         high = lo[2] - floor_z > HIGH_M and score < HIGH_SCORE
         flat = is_floor_patch(q[members, 2] - under_q[members], float(hi[2] - floor_z))
-        wall_piece = on_wall(box, walls) or _wall_coloured(box, colors, idx[members], walls, wall_colour)
+        wall_piece = on_wall(box, walls) or wall_coloured(box, colors, idx[members], walls, wall_colour)
         if flat or high or wall_piece:
             continue
         objects.append(SceneObject(box, tuple(sorted(parts)), len(members), score))

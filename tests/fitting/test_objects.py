@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.objects import floor_heights, group_objects, on_wall
+from cuboidcli.fitting.not_objects import on_wall
+from cuboidcli.fitting.objects import floor_heights, group_objects
 from cuboidcli.geometry.gravity import level_frame
 
 VOXEL = 0.035
