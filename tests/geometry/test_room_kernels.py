@@ -473,3 +473,21 @@ def test_adam_refinement_moves_a_box_onto_its_surface_points_within_its_size_lim
     # no iterations, or steps that only make it worse: the start is returned as it is
     assert np.array_equal(refine_surface_adam(pts, init, 0.05, 2.0, 0.005, 0), init)
     assert np.array_equal(refine_surface_adam(pts, truth, 0.05, 2.0, 0.5, 3), truth)
+
+
+@pytest.mark.parametrize("axis", [0, 1])
+def test_a_box_far_along_one_axis_visits_the_block_it_stands_in(axis):
+    """Each axis of the near zone is tested against the block's own bounds on that axis: a box 5 m along x
+    (then y) from the origin, its points around it, the other coordinates near 0 (a block whose upper bound
+    on the next axis lies far below the box's lower bound on this one). The gain is the sum of the values."""
+    half = np.array([0.2, 0.2, 0.2])
+    eye = np.eye(3)
+    centre = np.zeros(3)
+    centre[axis] = 5.0
+    local = [(0.2, 0.0, 0.0), (0.0, 0.2, 0.05), (0.0, 0.05, 0.2), (0.1, 0.1, 0.1)]
+    pts = world(local, c=centre, rot=eye)
+    room = RoomPoints.build(pts, None, "plain")
+    want = room_values(room, centre[None], half[None], eye[None], PARAMS)[0].sum()
+    got = _gains(room, np.zeros(len(pts)), centre[None], half[None], eye[None])
+    assert want > 3.0
+    assert got == pytest.approx([want])
