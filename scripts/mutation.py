@@ -196,6 +196,17 @@ TARGETS = (
         ("tests/geometry/test_room_kernels.py",),
         (("NUMBA_DISABLE_JIT", "1"),),
     ),
+    # a fitted room's whole objects: its points grouped into objects, their upright boxes and scores, and
+    # the wall pieces and floor patches left out
+    *(
+        Target(
+            name,
+            f"cuboidcli/fitting/{name}.py",
+            None,
+            ("tests/fitting/test_objects.py", "tests/fitting/test_objects_edges.py"),
+        )
+        for name in ("objects", "not_objects")
+    ),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.
