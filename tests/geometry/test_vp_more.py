@@ -1,6 +1,7 @@
 """More exact checks of the vanishing-point refinement and fit (geometry/vp_model.py, manhattan_vp.py,
-vanishing.py) on segments drawn in code from a known rotation and focal length, with noise where the
-robust weights must matter: the refinement must end where the Huber cost of the segments is stationary."""
+vanishing.py) on segments drawn in code from known rotations and focal lengths, with noise where the robust
+weights must matter (the refinement must end where the Huber cost of the segments is stationary), and of
+the segment detector's working size and border bands (geometry/lines.py)."""
 
 from __future__ import annotations
 
