@@ -127,7 +127,7 @@ TARGETS = (
                 *(
                     ("tests/geometry/test_down.py",)
                     if name == "down"
-                    else ("tests/geometry/test_vp_edges.py",)
+                    else ("tests/geometry/test_vp_more.py", "tests/geometry/test_vp_edges.py")
                 ),
                 "tests/geometry/test_vanishing.py",
                 *(
