@@ -32,8 +32,11 @@ if TYPE_CHECKING:
 
 #: Nomination scores every hypothesis on every NOMINATION_STEP-th point of each block ...
 NOMINATION_STEP = 8
-#: ... this many hypotheses at a time, each chunk pruned by the nominees of the chunks before it.
+#: ... this many hypotheses at a time, each chunk pruned by the nominees of the chunks before it ...
 NOMINATION_CHUNK = 256
+#: ... on the subset grouped into blocks of 1 m split by viewpoint cells of 2 m (the room's own blocks are
+#: 0.5 m by 0.5 m): on a cluttered real scan the nomination took 0.045 s a selection against 0.069 s.
+NOMINATION_BLOCKS = (1.0, 2.0)
 
 
 def refine_surface(
@@ -101,6 +104,12 @@ class RoomBackend(ScoringBackend):
     def __init__(self, room: RoomPoints) -> None:
         self.room = room
         self._sub_index, self._sub = room.subsample(NOMINATION_STEP)
+        # The nomination's subset in coarser blocks: with the room's own blocks it holds one or two points a
+        # block, and a hypothesis spent most of its time deciding which blocks it reaches. Which blocks the
+        # nominees' gains are summed in changes no cuboid: the full pass is exact whatever the nominees.
+        views = self._sub.views if room.visibility == "views" else None
+        self._nom = RoomPoints.build(self._sub.points, views, room.visibility, *NOMINATION_BLOCKS)
+        self._nom_index = self._sub_index[self._nom.order]
         self._bound_cache: tuple | None = None
 
     def _points_of(self, points: Tensor) -> tuple[RoomPoints, np.ndarray | None]:
@@ -166,15 +175,15 @@ class RoomBackend(ScoringBackend):
         params = self._params(sp)
         st = _np64(state)
         c, a, R = (_np64(x) for x in (centers, half_sizes, rotations))
-        sub_state = st[self._sub_index]
-        sub_bound = self._sub.block_bound(sub_state)
+        sub_state = st[self._nom_index]
+        sub_bound = self._nom.block_bound(sub_state)
         sub_order = np.argsort(-sub_bound, kind="stable")
         g_sub = np.full(len(c), -np.inf)
         floor = -np.inf
         for s in range(0, len(c), NOMINATION_CHUNK):
             e = min(s + NOMINATION_CHUNK, len(c))
             g_sub[s:e] = room_gains(
-                self._sub, sub_state, c[s:e], a[s:e], R[s:e], params, floor, sub_bound, sub_order
+                self._nom, sub_state, c[s:e], a[s:e], R[s:e], params, floor, sub_bound, sub_order
             )
             if e >= NOMINATED:
                 floor = float(np.partition(g_sub[:e], -NOMINATED)[-NOMINATED]) - PRUNE_MARGIN

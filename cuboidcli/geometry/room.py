@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numba import njit, prange
@@ -42,14 +43,20 @@ _MODE = {"views": 0, "inside": 1, "plain": 2}
 
 #: Side of the coarse voxels that group points into blocks (m).
 BLOCK_M = 0.5
-#: Viewpoints are clustered on this grid (m) for grouping only; each point keeps its own viewpoint.
-VIEW_CELL_M = 0.5
+#: Viewpoints are clustered on this grid (m) for grouping only; each point keeps its own viewpoint. A
+#: hypothesis tests every block for whether it reaches it: with 0.5 m cells a bare real scan made about 3,200
+#: blocks of 11 points, and the tests took a fifth of the scoring; with 2 m cells, about 1,000 blocks, a
+#: selection on a cluttered scan took 0.148 s against 0.166 s. (The points are fitted in block order, so
+#: the cells also decide which points a seed's random draws pick.)
+VIEW_CELL_M = 2.0
 
 
 @njit(cache=True, inline="always")
 def _room_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope, offset, cutoff, mode):
     """The value of one point (local l) for one cuboid (half-sizes a; its viewpoint c for "views")."""
     if mode == 0:
+        if _apart(l0, l1, l2, a0, a1, a2, c0, c1, c2, cutoff):
+            return 0.0
         oai = True
         args = (beta, inv_tau, tau_c, slope, offset, cutoff, oai)
         v = pair_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, *args)
@@ -75,6 +82,25 @@ def _room_value(l0, l1, l2, a0, a1, a2, c0, c1, c2, beta, inv_tau, tau_c, slope,
     m = min(-q0, min(-q1, -q2))
     d2 = e0 + e1 + e2 + (m * m if m > 0 else 0.0)
     return f_inlier(d2, beta, inv_tau) if d2 < cutoff else 0.0
+
+
+@njit(cache=True, inline="always")
+def _apart(l0, l1, l2, a0, a1, a2, c0, c1, c2, cutoff):
+    """Whether a point (local l) lies beyond the inlier cutoff of a cuboid and on the same side of one of
+    its faces' planes as its viewpoint (local c): the line of sight cannot meet the box and the viewpoint
+    is outside it, so the point's value is exactly 0. Most points a hypothesis visits are such; this
+    spares them the line-of-sight test (:func:`~cuboidcli.geometry.inlier.slab_occlusion` finds no side
+    on such a segment: both its crossings of that axis's slab lie outside (0, 1))."""
+    if not (
+        (l0 > a0 and c0 > a0) or (l0 < -a0 and c0 < -a0)
+        or (l1 > a1 and c1 > a1) or (l1 < -a1 and c1 < -a1)
+        or (l2 > a2 and c2 > a2) or (l2 < -a2 and c2 < -a2)
+    ):  # fmt: skip
+        return False
+    q0, q1, q2 = abs(l0) - a0, abs(l1) - a1, abs(l2) - a2
+    # outside the box on that axis, so the squared distance is the outside excess alone
+    d2 = (q0 * q0 if q0 > 0 else 0.0) + (q1 * q1 if q1 > 0 else 0.0) + (q2 * q2 if q2 > 0 else 0.0)
+    return d2 >= cutoff
 
 
 @njit(cache=True, inline="always")
@@ -112,10 +138,11 @@ def _point_value(points, views, i, t0, t1, t2, R, a0, a1, a2, params, mode):
 
 @njit(parallel=True, cache=True)
 def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, bound, order, centers, half, rot,
-                threshold, params, mode, out):  # fmt: skip
+                threshold, params, mode, spread, out):  # fmt: skip
     n_blocks = start.shape[0] - 1
     margin = math.sqrt(params[5])
-    for h in prange(centers.shape[0]):
+    for p in prange(centers.shape[0]):
+        h = spread[p]
         t0, t1, t2 = centers[h, 0], centers[h, 1], centers[h, 2]
         a0, a1, a2 = half[h, 0], half[h, 1], half[h, 2]
         R = rot[h]
@@ -126,10 +153,15 @@ def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, bound, orde
         for k in range(n_blocks):
             b = order[k]
             near = _meets(lo, hi, b, t0, t1, t2, e0 + margin, e1 + margin, e2 + margin)
-            if near or (mode == 0 and _meets(hull_lo, hull_hi, b, t0, t1, t2, e0, e1, e2)):
+            if near:
                 visit[n_visit] = b
                 n_visit += 1
                 remaining += bound[b]
+            elif mode == 0 and _meets(hull_lo, hull_hi, b, t0, t1, t2, e0, e1, e2):
+                # a block beyond the inlier margin can only lose (points the box hides from their
+                # viewpoints): it is visited for the exact gain but adds nothing to what may still be gained
+                visit[n_visit] = -1 - b
+                n_visit += 1
         acc = 0.0
         pruned = False
         for j in range(n_visit):
@@ -138,7 +170,10 @@ def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, bound, orde
                 pruned = True
                 break
             b = visit[j]
-            remaining -= bound[b]
+            if b < 0:
+                b = -1 - b
+            else:
+                remaining -= bound[b]
             for i in range(start[b], start[b + 1]):
                 v = _point_value(points, views, i, t0, t1, t2, R, a0, a1, a2, params, mode)
                 o = old[i]
@@ -177,8 +212,12 @@ class RoomPoints:
     order: np.ndarray
 
     @classmethod
-    def build(cls, points: np.ndarray, views: np.ndarray | None, visibility: str) -> RoomPoints:
-        """Group ``points`` (N, 3) into blocks; ``views`` (N, 3) is required for "views"."""
+    def build(
+        cls, points: np.ndarray, views: np.ndarray | None, visibility: str,
+        block_m: float = BLOCK_M, view_cell_m: float = VIEW_CELL_M,
+    ) -> RoomPoints:  # fmt: skip
+        """Group ``points`` (N, 3) into blocks (coarse voxels of ``block_m``, split by viewpoint cells of
+        ``view_cell_m``); ``views`` (N, 3) is required for "views"."""
         if visibility not in _MODE:
             raise ValueError(f"visibility must be one of {', '.join(VISIBILITY)}, not {visibility!r}")
         points = np.ascontiguousarray(points, np.float64)
@@ -188,9 +227,9 @@ class RoomPoints:
             views = np.ascontiguousarray(views, np.float64)
         else:
             views = np.zeros_like(points)
-        keys = _block_keys(points, BLOCK_M)
+        keys = _block_keys(points, block_m)
         if visibility == "views":
-            cell = np.floor(views / VIEW_CELL_M).astype(np.int64)
+            cell = np.floor(views / view_cell_m).astype(np.int64)
             _, view_id = np.unique(cell, axis=0, return_inverse=True)
             keys = keys * (int(view_id.max()) + 1) + view_id.ravel()
         order = np.argsort(keys, kind="stable")
@@ -264,9 +303,19 @@ def room_gains(
     c, a, R = (np.ascontiguousarray(x, np.float64) for x in (centers, half_sizes, rotations))
     _room_gains(
         room.points, room.views, state, room.start, room.lo, room.hi, room.hull_lo, room.hull_hi, bound,
-        order, c, a, R, float(prune_below), params, _MODE[room.visibility], out,
+        order, c, a, R, float(prune_below), params, _MODE[room.visibility], _spread(len(c)), out,
     )  # fmt: skip
     return out
+
+
+@lru_cache(maxsize=8)
+def _spread(n: int) -> np.ndarray:
+    """The order in which the threads take ``n`` hypotheses: a fixed shuffle. numba hands each thread one
+    contiguous share of a parallel loop, and a batch's costly hypotheses come together (the localised
+    sets first, boxes in the clutter, pruning that fails for hypotheses near the best), so in batch order
+    one thread did most of the work: 0.32 s against 0.21 s shuffled for one selection on a real scan. Each
+    gain is computed alone, so the gains are the same."""
+    return np.random.default_rng(0).permutation(n).astype(np.int64)
 
 
 def room_values(room: RoomPoints, centers, half_sizes, rotations, params: tuple) -> np.ndarray:
