@@ -24,7 +24,8 @@ from cuboidcli.fitting.backend import NOMINATED, PRUNE_MARGIN, ScoringBackend
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry.arrays import as_kind, is_tensor, on_cpu_as
-from cuboidcli.geometry.room import RoomPoints, refine_surface_adam, room_gains, room_params, room_values
+from cuboidcli.geometry.room import RoomPoints, room_gains, room_params, room_values
+from cuboidcli.geometry.room_refine import refine_surface_adam
 from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_angle
 
 if TYPE_CHECKING:

@@ -15,15 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from cuboidcli.geometry.room import (
-    RoomPoints,
-    _rodrigues,
-    _surface_loss,
-    refine_surface_adam,
-    room_gains,
-    room_params,
-    room_values,
-)
+from cuboidcli.geometry.room import RoomPoints, room_gains, room_params, room_values
+from cuboidcli.geometry.room_refine import _rodrigues, _surface_loss, refine_surface_adam
 
 TAU, BETA, TAU_C = 0.02, 5.0, 0.04
 PARAMS = room_params(TAU, BETA, TAU_C)
@@ -339,7 +332,7 @@ def test_views_pruning_counts_only_the_blocks_seen_through_or_near_the_box():
     assert _gains(room, np.zeros(6), CENTER[None], half[None], R[None]) == pytest.approx([5 * f_i(0.01)])
 
 
-def test_blocks_are_half_metre_cells_and_two_metre_viewpoint_cells():
+def test_blocks_are_half_metre_cells_and_viewpoint_cells():
     pts = np.array([[0.1, 0.0, 0.0], [0.45, 0.2, 0.3], [0.7, 0.0, 0.0], [0.2, 0.55, 0.0], [0.3, 0.1, 0.49]])
     room = RoomPoints.build(pts, None, "inside")
     assert np.array_equal(room.points, pts[room.order])
@@ -358,27 +351,33 @@ def test_blocks_are_half_metre_cells_and_two_metre_viewpoint_cells():
     # the cells start at the points' minimum, wherever that is
     shifted = RoomPoints.build(pts + [0.3, -0.2, 7.0], None, "plain")
     assert np.array_equal(np.diff(shifted.start), np.diff(room.start))
-    # with viewpoints, one block per 2 m cell of the viewpoints too (1.9 and 2.1 m lie in two cells)
-    views = np.array([[0.0, 0.0, 1.0], [0.1, 1.9, 1.1], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 2.1, 1.0]])
+    # with viewpoints, one block per half-metre cell of the viewpoints too
+    views = np.array([[0.0, 0.0, 1.0], [0.1, 0.1, 1.1], [0.0, 0.0, 1.0], [0.0, 0.0, 1.0], [0.0, 0.6, 1.0]])
     room = RoomPoints.build(pts, views, "views")
     assert np.array_equal(room.views, views[room.order])
     blocks = [sorted(room.order[a:b].tolist()) for a, b in zip(room.start[:-1], room.start[1:], strict=True)]
     assert sorted(blocks) == [[0, 1], [2], [3], [4]]
     b = [i for i, blk in enumerate(blocks) if blk == [0, 1]][0]
     assert room.hull_lo[b] == pytest.approx([0.0, 0.0, 0.0]) and room.hull_hi[b] == pytest.approx(
-        [0.45, 1.9, 1.1]
+        [0.45, 0.2, 1.1]
     )
     assert room.lo[b] == pytest.approx([0.1, 0.0, 0.0]) and room.hi[b] == pytest.approx([0.45, 0.2, 0.3])
     b = [i for i, blk in enumerate(blocks) if blk == [4]][0]
     assert room.hull_lo[b] == pytest.approx([0.0, 0.1, 0.49]) and room.hull_hi[b] == pytest.approx(
-        [0.3, 2.1, 1.0]
+        [0.3, 0.6, 1.0]
     )
+    # the blocks of one half-metre voxel together: their voxel, its boxes those of its blocks together
+    voxel_of = {tuple(blk): int(room.voxel[i]) for i, blk in enumerate(blocks)}
+    assert voxel_of[(0, 1)] == voxel_of[(4,)] != voxel_of[(2,)] != voxel_of[(3,)] != voxel_of[(0, 1)]
+    v = voxel_of[(4,)]
+    assert room.voxel_lo[v] == pytest.approx([0.1, 0.0, 0.0]) and room.voxel_hi[v] == pytest.approx(
+        [0.45, 0.2, 0.49]
+    )
+    assert room.voxel_hull_lo[v] == pytest.approx([0.0, 0.0, 0.0])
+    assert room.voxel_hull_hi[v] == pytest.approx([0.45, 0.6, 1.1])
     # the cells are the caller's to choose
-    fine = RoomPoints.build(pts, views, "views", block_m=0.5, view_cell_m=0.5)
-    blocks = [sorted(fine.order[a:b].tolist()) for a, b in zip(fine.start[:-1], fine.start[1:], strict=True)]
-    assert sorted(blocks) == [[0], [1], [2], [3], [4]]
     coarse = RoomPoints.build(pts, views, "views", block_m=1.0, view_cell_m=5.0)
-    assert np.array_equal(coarse.start, [0, 5])
+    assert np.array_equal(coarse.start, [0, 5]) and np.array_equal(coarse.voxel, [0])
 
 
 def test_views_need_one_viewpoint_per_point_and_visibility_is_checked():
