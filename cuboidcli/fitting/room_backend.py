@@ -31,8 +31,10 @@ from cuboidcli.geometry.rotations import axis_angle_to_matrix, matrix_to_axis_an
 if TYPE_CHECKING:
     from torch import Tensor
 
-#: Nomination scores every hypothesis on every NOMINATION_STEP-th point of each block ...
-NOMINATION_STEP = 8
+#: Nomination scores every hypothesis on every NOMINATION_STEP-th point of each block (at least one) ...
+#: (The nominees only set the exact pass's threshold: any step selects the same cuboids. On the real scans
+#: 16 scored a cluttered room in 6.66 s against 7.09 s with 8; 24 gained little more, 6.56 s.)
+NOMINATION_STEP = 16
 #: ... this many hypotheses at a time, each chunk pruned by the nominees of the chunks before it ...
 NOMINATION_CHUNK = 256
 #: ... on the subset grouped into blocks of 1 m split by viewpoint cells of 2 m (the room's own blocks are
