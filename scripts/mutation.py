@@ -116,8 +116,10 @@ TARGETS = (
     ),
     # the camera and the down direction from a photo's own lines: segments, vanishing points (the
     # Manhattan frame and the focal search), their confidences, and the choice between the lines' down
-    # direction and the depth's. test_photo_lines (the same estimate through load_frame, 2-3 s a mutant)
-    # only for down.py, whose rule it applies; its plain-wall test is left out (30 s of fallbacks)
+    # direction and the depth's (test_lines_more for the segments' filters, test_vp_step for one step of
+    # the refinement and the profile's use of it). test_photo_lines (the same estimate through load_frame,
+    # 2-3 s a mutant) only for down.py, whose rule it applies; its plain-wall test is left out (30 s of
+    # fallbacks)
     *(
         Target(
             name,
@@ -127,7 +129,15 @@ TARGETS = (
                 *(
                     ("tests/geometry/test_down.py",)
                     if name == "down"
-                    else ("tests/geometry/test_vp_more.py", "tests/geometry/test_vp_edges.py")
+                    else (
+                        *{
+                            "lines": ("tests/geometry/test_lines_more.py",),
+                            "vp_model": ("tests/geometry/test_vp_step.py",),
+                            "manhattan_vp": ("tests/geometry/test_vp_step.py",),
+                        }.get(name, ()),
+                        "tests/geometry/test_vp_more.py",
+                        "tests/geometry/test_vp_edges.py",
+                    )
                 ),
                 "tests/geometry/test_vanishing.py",
                 *(
