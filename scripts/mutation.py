@@ -199,12 +199,12 @@ TARGETS = (
     ),
     # the room scoring kernels, run as Python: compiling them for every mutant would take 20-30 s each, and
     # tests/geometry/test_room_scoring.py cannot run without numba (its far points overflow Python's math.exp)
-    Target(
-        "room_kernels",
-        "cuboidcli/geometry/room.py",
-        None,
-        ("tests/geometry/test_room_kernels.py",),
-        (("NUMBA_DISABLE_JIT", "1"),),
+    *(
+        Target(name, path, None, ("tests/geometry/test_room_kernels.py",), (("NUMBA_DISABLE_JIT", "1"),))
+        for name, path in (
+            ("room_kernels", "cuboidcli/geometry/room.py"),
+            ("room_refine", "cuboidcli/geometry/room_refine.py"),
+        )
     ),
     # a fitted room's whole objects: its points grouped into objects, their upright boxes and scores, and
     # the wall pieces and floor patches left out

@@ -87,7 +87,8 @@ class FitInput:
     """``frame`` or ``room``."""
     points: Tensor
     """(N, 3) float32 metres: a frame's in the OpenCV camera frame, a room's in its own world frame. A numpy
-    array (a frame on the CPU: no torch needed) or a tensor (a GPU, a room)."""
+    array (the default parts on the CPU: no torch needed) or a tensor (a GPU, a part that computes with
+    torch)."""
     views: str
     """camera, cameras or none (:data:`VIEWS`)."""
     grid: ImageGrid | None = None

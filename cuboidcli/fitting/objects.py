@@ -284,19 +284,32 @@ def group_objects(
     groups = {g: np.flatnonzero(group == g) for g in range(len(seeds))}
     groups = {g: m for g, m in groups.items() if len(m) >= MIN_OBJECT_POINTS}
     headings = {g: heading(g) for g in groups}
+    # a group's box in a heading, kept until the group changes: the merging passes ask for the same boxes
+    # again and again (thousands of times in a cluttered room)
+    # (as plain floats: thousands of pairs of 3-vectors are compared)
+    known: dict[tuple[int, int], tuple[list[float], list[float], float]] = {}
+
+    def box_of(g: int, h: int) -> tuple[list[float], list[float], float]:
+        if (g, h) not in known:
+            lo, hi = extent(groups[g], headings[h])
+            known[(g, h)] = (lo.tolist(), hi.tolist(), float(np.prod(hi - lo)))
+        return known[(g, h)]
+
     merged = True
     while merged:
         merged = False
         order = sorted(groups, key=lambda g: -len(groups[g]))
-        boxes = {g: extent(groups[g], headings[g]) for g in order}
         for i, a in enumerate(order):
             for b in order[i + 1 :]:
-                lo_a, hi_a = boxes[a]
-                lo_b, hi_b = extent(groups[b], headings[a])  # the smaller group in a's heading
-                common = np.prod(np.clip(np.minimum(hi_a, hi_b) - np.maximum(lo_a, lo_b), 0.0, None))
-                smaller = min(np.prod(hi_a - lo_a), np.prod(hi_b - lo_b))
+                lo_a, hi_a, vol_a = box_of(a, a)
+                lo_b, hi_b, vol_b = box_of(b, a)  # the smaller group in a's heading
+                common = 1.0
+                for k in range(3):
+                    common *= max(min(hi_a[k], hi_b[k]) - max(lo_a[k], lo_b[k]), 0.0)
+                smaller = min(vol_a, vol_b)
                 if common >= MERGE_OVERLAP * smaller:
                     groups[a] = np.concatenate([groups[a], groups.pop(b)])
+                    known = {k: v for k, v in known.items() if a not in k and b not in k}
                     merged = True
                     break
             if merged:

@@ -289,11 +289,12 @@ def estimate(
 
 
 def arrays_for(inp: FitInput, config: FitConfig, solver, sampler) -> FitInput:
-    """``inp`` as the arrays it is fitted on: an input of numpy arrays stays so where the backend is numba
-    and both parts take numpy arrays (``takes_numpy``), and becomes tensors otherwise."""
-    if arrays.is_tensor(inp.points) or inp.backend is not None:
+    """``inp`` as the arrays it is fitted on: an input of numpy arrays stays so where both parts take numpy
+    arrays (``takes_numpy``) and the backend is numba (a frame) or the input's own (a room's, whose kernels
+    are numba loops), and becomes tensors otherwise."""
+    if arrays.is_tensor(inp.points):
         return inp
-    numba = resolve_backend(config.backend, "cpu") == "numba"
+    numba = inp.backend is not None or resolve_backend(config.backend, "cpu") == "numba"
     if numba and all(getattr(part, "takes_numpy", False) for part in (solver, sampler)):
         return inp
     return inp.as_tensors()

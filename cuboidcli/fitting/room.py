@@ -19,7 +19,6 @@ from __future__ import annotations
 import time
 
 import numpy as np
-import torch
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.align import Alignment
@@ -66,7 +65,8 @@ def room_input(
     ``viewpoints`` (N, 3): a camera centre that observed each point (a fused sequence), or None (a bare
     cloud, seen from virtual viewpoints just outside its surfaces); ``colors`` (N, 3) 0-255 or None: the
     fitting points keep their voxels' mean colour (the objects step reads it). Deterministic for
-    ``config.seed``."""
+    ``config.seed``. The points are numpy arrays; the estimator makes them tensors only for a part that
+    computes with torch (:func:`cuboidcli.fitting.pipeline.arrays_for`)."""
     points = np.asarray(points, dtype=np.float64)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"points must be (N, 3), got {points.shape}")
@@ -109,7 +109,7 @@ def room_input(
     timing["prepare"] += time.perf_counter() - t
     return FitInput(
         "room",
-        torch.from_numpy(room.points.astype(np.float32)),
+        room.points.astype(np.float32),
         "cameras" if viewpoints is not None else "none",
         space=SpaceCells.of(room.points),
         backend=RoomBackend(room),

@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit, prange
 
 from cuboidcli.geometry.gravity import manhattan_axes, manhattan_frame, refine_frame
+from cuboidcli.geometry.normals import estimate_normals_pca
 
 
 def voxel_groups(points: np.ndarray, voxel_m: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -38,14 +39,10 @@ def voxel_groups(points: np.ndarray, voxel_m: float) -> tuple[np.ndarray, np.nda
 
 def estimate_normals(points: np.ndarray, radius_m: float, max_nn: int = 24) -> np.ndarray:
     """Unit surface normals (N, 3) of points (N, 3) from their neighbours within ``radius_m`` (at most
-    ``max_nn``), by Open3D's local PCA; signs are arbitrary (the Manhattan frame ignores them)."""
-    import open3d as o3d
-
-    pcd = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(np.asarray(points, dtype=np.float64)))
-    pcd.estimate_normals(o3d.geometry.KDTreeSearchParamHybrid(radius=float(radius_m), max_nn=int(max_nn)))
-    n = np.asarray(pcd.normals)
-    norm = np.linalg.norm(n, axis=1, keepdims=True)
-    return np.where(norm > 0, n / np.maximum(norm, 1e-12), 0.0)
+    ``max_nn``, the nearest) by local PCA (:mod:`cuboidcli.geometry.normals`; the same normals as Open3D's
+    ``estimate_normals`` without importing it); zeros where fewer than 3 neighbours lie that close; signs are
+    arbitrary (the Manhattan frame ignores them)."""
+    return estimate_normals_pca(points, radius_m, max_nn)
 
 
 #: A plane is the floor candidate of a direction when it lies in this lowest share of the points' extent.

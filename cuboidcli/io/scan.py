@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from cuboidcli.io.depth import InputError, _one_line
+from cuboidcli.io.ply import read_ply_vertices
 
 SCAN_SUFFIXES = (".ply", ".pcd", ".obj", ".glb", ".gltf", ".npy", ".npz")
 #: Metres per coordinate unit a file may be stored in (``--unit``); the room loader scales by it
@@ -114,6 +115,20 @@ def _pcd_count(path: Path) -> int:
         if len(parts) == 2 and parts[0] == "POINTS" and parts[1].isdigit():
             return int(parts[1])
     raise InputError(f"cannot read {path}: its PCD header has no POINTS count")
+
+
+def _read_ply_points(path: Path, declared: int) -> PointCloud:
+    """A PLY point cloud: binary vertex-only files with numpy (:mod:`cuboidcli.io.ply`), others with
+    Open3D."""
+    try:
+        read = read_ply_vertices(path)
+    except ValueError as e:
+        raise InputError(f"cannot read {path}: {e}") from e
+    if read is None:
+        return _read_o3d_points(path, declared)
+    points, colors, normals = read
+    colors = _colors_u8(colors, str(path)) if colors is not None else None
+    return PointCloud(points, colors, normals)
 
 
 def _read_o3d_points(path: Path, declared: int) -> PointCloud:
@@ -297,7 +312,7 @@ def read_scan(path: str | os.PathLike, *, mesh_points: int = 200_000, seed: int 
         if faces > 0:
             fmt, cloud = "ply-mesh", _read_mesh(path, _load_trimesh(path), mesh_points, seed)
         else:
-            fmt, cloud = "ply-points", _read_o3d_points(path, vertices)
+            fmt, cloud = "ply-points", _read_ply_points(path, vertices)
     elif suffix == ".pcd":
         fmt, cloud = "pcd", _read_o3d_points(path, _pcd_count(path))
     elif suffix in MESH_SUFFIXES:

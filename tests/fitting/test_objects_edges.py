@@ -374,6 +374,26 @@ def test_a_group_mostly_inside_a_larger_ones_box_joins_it():
     assert sorted(o.points for o in out) == sorted([len(frame), len(half_out)])
 
 
+def test_a_group_that_joined_another_grows_its_box_for_the_next():
+    """The frame takes a block that sticks 4.5 cm out of its box (7 % of the block's); a larger block
+    beside it lies 84 % inside the frame's own box, wholly inside the grown one: it joins on the next pass
+    (the grown box, not the one computed before the first join, decides)."""
+    frame = _shelf_frame()
+    block = _grid((1.05, 1.15, 0.3), (1.66, 1.23, 0.38))  # x up to 1.645, the frame's box ends at 1.6175
+    larger = _grid((1.40, 1.15, 0.6), (1.66, 1.23, 0.9))
+    # compared with the frame (the largest) before the block, when it does not fit yet
+    assert len(frame) > len(larger) > len(block)
+    pts, lab = _on_floor(frame, block, larger)
+    out = group_objects(pts, lab, [FLOOR], UP, VOXEL)
+    assert [o.points for o in out] == [len(frame) + len(block) + len(larger)]
+    assert _extent(out[0].box)[1][0] > 1.645  # past the frame's own box (1.6175)
+    # without the block the larger one stays apart
+    pts, lab = _on_floor(frame, larger)
+    assert sorted(o.points for o in group_objects(pts, lab, [FLOOR], UP, VOXEL)) == sorted(
+        [len(frame), len(larger)]
+    )
+
+
 def test_objects_come_largest_first_with_their_cuboids():
     small = _box_pts(0.3, 0.3, 0.07, 3 * VOXEL, 3 * VOXEL, 3 * VOXEL)
     large = _box_pts(2.0, 2.0, 0.07, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)

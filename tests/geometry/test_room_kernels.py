@@ -15,15 +15,8 @@ import math
 import numpy as np
 import pytest
 
-from cuboidcli.geometry.room import (
-    RoomPoints,
-    _rodrigues,
-    _surface_loss,
-    refine_surface_adam,
-    room_gains,
-    room_params,
-    room_values,
-)
+from cuboidcli.geometry.room import RoomPoints, room_gains, room_params, room_values
+from cuboidcli.geometry.room_refine import _rodrigues, _surface_loss, refine_surface_adam
 
 TAU, BETA, TAU_C = 0.02, 5.0, 0.04
 PARAMS = room_params(TAU, BETA, TAU_C)
@@ -373,6 +366,18 @@ def test_blocks_are_half_metre_cells_and_viewpoint_cells():
     assert room.hull_lo[b] == pytest.approx([0.0, 0.1, 0.49]) and room.hull_hi[b] == pytest.approx(
         [0.3, 0.6, 1.0]
     )
+    # the blocks of one half-metre voxel together: their voxel, its boxes those of its blocks together
+    voxel_of = {tuple(blk): int(room.voxel[i]) for i, blk in enumerate(blocks)}
+    assert voxel_of[(0, 1)] == voxel_of[(4,)] != voxel_of[(2,)] != voxel_of[(3,)] != voxel_of[(0, 1)]
+    v = voxel_of[(4,)]
+    assert room.voxel_lo[v] == pytest.approx([0.1, 0.0, 0.0]) and room.voxel_hi[v] == pytest.approx(
+        [0.45, 0.2, 0.49]
+    )
+    assert room.voxel_hull_lo[v] == pytest.approx([0.0, 0.0, 0.0])
+    assert room.voxel_hull_hi[v] == pytest.approx([0.45, 0.6, 1.1])
+    # the cells are the caller's to choose
+    coarse = RoomPoints.build(pts, views, "views", block_m=1.0, view_cell_m=5.0)
+    assert np.array_equal(coarse.start, [0, 5]) and np.array_equal(coarse.voxel, [0])
 
 
 def test_views_need_one_viewpoint_per_point_and_visibility_is_checked():

@@ -94,8 +94,12 @@ def test_the_pruned_nomination_selects_the_exact_best(monkeypatch, chunk):
 
     def spy(r, st, centers, *args, **kwargs):
         prune = kwargs.get("prune_below", args[3] if len(args) > 3 else -np.inf)
+        got = room_gains(r, st, centers, *args, **kwargs)
         calls.append((r.points.shape[0], np.array(centers), prune))
-        return room_gains(r, st, centers, *args, **kwargs)
+        results.append(got)
+        return got
+
+    results = []
 
     monkeypatch.setattr(room_backend, "room_gains", spy)
     best, gain, g = backend.select_best(
@@ -120,3 +124,12 @@ def test_the_pruned_nomination_selects_the_exact_best(monkeypatch, chunk):
     assert (exact[~kept] < threshold).all() and (~kept).sum() > 100
     sub_calls = [call for call in calls if call[0] == len(sub.points)]
     assert sum(len(h) for _, h, _ in sub_calls) == 400 and len(sub_calls) == -(-400 // chunk)
+    # the subset is scored in its own coarser blocks, each point with its own state: its gains are the
+    # subset's, for every hypothesis the chunks' pruning kept
+    nominated = np.concatenate(
+        [g for call, g in zip(calls, results, strict=True) if call[0] == len(sub.points)]
+    )
+    scored = np.isfinite(nominated)
+    assert scored.sum() >= room_backend.NOMINATED
+    assert np.allclose(nominated[scored], sub_exact[scored], rtol=1e-10, atol=1e-8)
+    assert len(backend._nom.start) < len(backend._sub.start)  # fewer, larger blocks
