@@ -63,16 +63,18 @@ def _layout(path: Path) -> tuple[np.dtype, int, int] | None:
 
 def read_ply_vertices(path: Path) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None] | None:
     """(points (N, 3) float64, colours (N, 3) as stored or None, normals (N, 3) float64 or None) of a
-    binary vertex-only PLY point cloud; None where the file has another layout or lacks x, y, z.
+    binary vertex-only PLY point cloud; None where the file has another layout.
 
-    Raises ValueError when the file holds fewer bytes than its header declares (truncated)."""
+    Raises ValueError when its vertices lack x, y or z, or the file holds fewer bytes than its header
+    declares (truncated)."""
     layout = _layout(path)
     if layout is None:
         return None
     dtype, count, offset = layout
     names = dtype.names or ()
     if not {"x", "y", "z"} <= set(names):
-        return None
+        missing = ", ".join(k for k in "xyz" if k not in names)
+        raise ValueError(f"its vertices have no {missing} (properties: {', '.join(names) or 'none'})")
     available = (path.stat().st_size - offset) // dtype.itemsize if dtype.itemsize else 0
     if available < count:
         raise ValueError(f"the file is truncated ({count} points declared, {available} stored)")

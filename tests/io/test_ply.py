@@ -92,8 +92,15 @@ def test_other_layouts_are_left_to_open3d(tmp_path):
     head = "ply\nformat binary_little_endian 1.0\nelement vertex 1\n"
     listed.write_bytes((head + "property float x\nproperty list uchar int idx\nend_header\n").encode())
     assert read_ply_vertices(listed) is None
+
+
+def test_vertices_without_z_are_one_line_naming_what_is_missing(tmp_path):
+    points, _, _ = _arrays(n=40)
     no_z = _write(tmp_path / "z.ply", "binary_little_endian", _props(points)[:2])
-    assert read_ply_vertices(no_z) is None
+    with pytest.raises(ValueError, match=r"its vertices have no z \(properties: x, y\)"):
+        read_ply_vertices(no_z)
+    with pytest.raises(InputError, match=r"cannot read .*z\.ply: its vertices have no z"):
+        read_scan(no_z)
 
 
 def test_a_truncated_file_is_one_line_naming_the_counts(tmp_path):
