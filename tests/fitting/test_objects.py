@@ -206,16 +206,20 @@ def test_a_flat_patch_just_above_the_floor_is_the_floors():
 
 def test_a_table_top_without_its_legs_stands_on_the_floor():
     """A real scan often misses thin legs: a level slab floating at table height, wide enough for a table
-    or a seat, is extended down to the floor; a shelf board 1.4 m up and a narrow ledge at table height
-    keep floating, and so do loose points at table height that no slab seeds."""
+    or a seat, and a low floating box are extended down to the floor; a shelf board 1.4 m up, a narrow
+    ledge at table height, loose points at table height that no slab seeds and a tall box from 0.3 m up
+    keep floating."""
     floor = _grid((0, 0, 0), (4, 4, 0))
     top, _ = _table(0.5, 0.5)  # 1.0 x 0.6 m at 0.75 m, no legs
     shelf = _grid((2.5, 0.5, 1.4), (3.5, 1.1, 1.4))
     ledge = _grid((0.5, 2.5, 0.75), (1.5, 2.8, 0.75))  # 0.3 m deep
     loose = _grid((2.5, 2.5, 0.75), (3.5, 3.1, 0.75))
-    pts = np.concatenate([floor, top, shelf, ledge, loose])
+    low = _grid((0.5, 3.4, 0.3), (0.8, 3.6, 0.5))  # a chair's seat and back, its legs unseen
+    tall = _grid((3.4, 3.4, 0.3), (3.6, 3.6, 1.4))
+    pts = np.concatenate([floor, top, shelf, ledge, loose, low, tall])
     labels = np.concatenate([np.zeros(len(floor)), np.full(len(top), 1), np.full(len(shelf), 2),
-                             np.full(len(ledge), 3), np.full(len(loose), -1)]).astype(np.int32)  # fmt: skip
+                             np.full(len(ledge), 3), np.full(len(loose) + len(low) + len(tall), -1)]
+                            ).astype(np.int32)  # fmt: skip
     cuboids = [
         Cuboid([2, 2, -0.02], [2, 2, 0.02], np.eye(3), kind="floor"),
         Cuboid([1.0, 0.8, 0.75], [0.5, 0.3, 0.005], np.eye(3), kind="object"),
@@ -226,7 +230,9 @@ def test_a_table_top_without_its_legs_stands_on_the_floor():
     bottoms = {o.cuboids: round(float(_extent(o.box)[0][2]), 3) for o in objects}
     assert bottoms[(1,)] == 0.0
     assert bottoms[(2,)] > 1.3 and bottoms[(3,)] > 0.7
-    (unseeded,) = [o for o in objects if not o.cuboids]
-    assert _extent(unseeded.box)[0][2] > 0.7
+    unseeded = {round(float(o.box.center[0]), 1): _extent(o.box) for o in objects if not o.cuboids}
+    assert sorted(unseeded) == [0.6, 3.0, 3.5]
+    assert unseeded[0.6][0][2] == 0.0 and abs(unseeded[0.6][1][2] - low[:, 2].max() - VOXEL / 2) < 1e-6
+    assert unseeded[3.0][0][2] > 0.7 and unseeded[3.5][0][2] > 0.25
     table = next(o for o in objects if o.cuboids == (1,))
     np.testing.assert_allclose(_extent(table.box)[1][2], 0.75 + VOXEL / 2, atol=1e-6)

@@ -207,12 +207,20 @@ def test_a_box_on_the_floor_its_extent_points_and_score():
 
 
 @pytest.mark.parametrize(("z0", "grounded"), [(0.1175, True), (0.1275, False)])
-def test_a_box_within_three_voxels_of_the_floor_stands_on_it(z0, grounded):
-    """The box's bottom (half a voxel under its lowest points) 10 or 11 cm up, against 3 voxels (10.5 cm)."""
+def test_a_box_within_three_voxels_of_the_floor_stands_on_it(z0, grounded, monkeypatch):
+    """The box's bottom (half a voxel under its lowest points) 10 or 11 cm up, against 3 voxels (10.5 cm).
+    A low floating box is then extended to the floor as furniture on unseen legs (STAND_LOW_M), but its
+    score stays that of a floating box."""
+    import cuboidcli.fitting.objects as objects_module
+
     crate = _box_pts(1.0, 1.0, z0, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
     pts, lab = _on_floor(crate)
     (o,) = group_objects(pts, lab, [FLOOR], UP, VOXEL)
-    lo, _ = _extent(o.box)
+    assert _extent(o.box)[0][2] == pytest.approx(0.0, abs=1e-9)
+    monkeypatch.setattr(objects_module, "STAND_LOW_M", -1.0)
+    (bare,) = group_objects(pts, lab, [FLOOR], UP, VOXEL)
+    assert bare.score == o.score
+    lo, _ = _extent(bare.box)
     assert lo[2] == pytest.approx(0.0 if grounded else z0 - VOXEL / 2, abs=1e-9)
     # the score counts the box as standing (x 1) or floating (x 0.7): the same points, scored by hand
     local = crate - (crate.min(0) - VOXEL / 2)
