@@ -13,7 +13,7 @@ from dataclasses import dataclass, replace
 from functools import lru_cache
 from pathlib import Path
 
-from cuboidcli.export.files import output_files, result_name
+from cuboidcli.export.files import output_files, result_names
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.io.result import same_settings, saved_settings
 from cuboidcli.load import SOURCES, LoadOptions
@@ -131,10 +131,12 @@ def fitter_for(config: FitConfig, weights: str | None, onnx: str | None):
 SCANNET_MESH = "_vh_clean_2.ply"
 
 
-def rooms_in(folder: Path) -> list[Path]:
+def rooms_in(folder: Path, levels: int = 2) -> list[Path]:
     """The rooms of a folder, sorted: its scan files, its sub-folders laid out as sequences, and its
     sub-folders that hold a room's scan file (ScanNet's ``scans/scene0000_00/scene0000_00_vh_clean_2.ply``:
-    the ``_vh_clean_2.ply`` of several, else the only one), one level deeper."""
+    the ``_vh_clean_2.ply`` of several, else the only one), one level deeper. A sub-folder with no scan file
+    of its own is searched the same way while ``levels`` allows: ScanNet's root folder gives the rooms of
+    its ``scans/``."""
     from cuboidcli.load.room import is_room_input
 
     rooms = []
@@ -150,6 +152,8 @@ def rooms_in(folder: Path) -> list[Path]:
             preferred = [q for q in scans if q.name.endswith(SCANNET_MESH)]
             if len(preferred) == 1 or len(scans) == 1:
                 rooms.append((preferred or scans)[0])
+            elif not scans and levels > 1:
+                rooms.extend(rooms_in(p, levels - 1))
     return rooms
 
 
@@ -177,8 +181,8 @@ def folder_tasks(job: Job, files: list[Path], out_dir: Path, skip_existing: bool
     """The tasks (job, input, result JSON) of a folder's inputs, their results in ``out_dir``, and the
     inputs left out with ``skip_existing`` because their outputs are complete (:meth:`Job.is_complete`)."""
     tasks, skipped = [], []
-    for f in files:
-        out_json = Path(out_dir) / result_name(f)
+    for f, name in zip(files, result_names(files), strict=True):
+        out_json = Path(out_dir) / name
         if skip_existing and job.is_complete(out_json):
             skipped.append(f)
         else:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import shutil
 from dataclasses import replace
+from pathlib import Path
 
 import cv2
 import numpy as np
@@ -106,3 +107,45 @@ def test_a_folder_of_rooms_as_scannet_lays_them_out(tmp_path):
     (scans / "empty").mkdir()
     assert rooms_in(scans) == [top, deep, single]
     assert is_rooms_folder(scans)
+
+
+def _empty_ply(path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text("ply\nformat ascii 1.0\nelement vertex 0\nproperty float x\nend_header\n")
+    return path
+
+
+def test_scannets_root_folder_gives_the_rooms_of_its_scans(tmp_path):
+    """ScanNet's root (``scans/``, ``scans_test/`` and its label files) is a folder of rooms two levels down;
+    a third level is not searched."""
+    from cuboidcli.job import is_rooms_folder, rooms_in
+
+    root = tmp_path / "ScanNet"
+    a = _empty_ply(root / "scans" / "scene0000_00" / "scene0000_00_vh_clean_2.ply")
+    _empty_ply(root / "scans" / "scene0000_00" / "scene0000_00_vh_clean.ply")
+    b = _empty_ply(root / "scans_test" / "scene0707_00" / "scene0707_00_vh_clean_2.ply")
+    _empty_ply(root / "deeper" / "still" / "scene" / "room.ply")
+    (root / "scannetv2-labels.combined.tsv").write_text("id\tcategory\n")
+    assert rooms_in(root) == [a, b]
+    assert is_rooms_folder(root)
+    assert rooms_in(root, levels=1) == []
+
+
+def test_rooms_that_share_a_file_name_get_results_of_their_own(tmp_path):
+    """Two rooms saved as room.ply in their own folders, and a.png beside a.npy, would write one result
+    JSON over the other."""
+    from cuboidcli.export.files import result_names
+
+    a = _empty_ply(tmp_path / "scans" / "kitchen" / "room.ply")
+    b = _empty_ply(tmp_path / "scans" / "office" / "room.ply")
+    c = _empty_ply(tmp_path / "scans" / "lounge.ply")
+    names = result_names([a, b, c])
+    assert names == ["kitchen_room_ply_cuboids.json", "office_room_ply_cuboids.json", "lounge_cuboids.json"]
+    pair = [tmp_path / "a.png", tmp_path / "a.npy", tmp_path / "b.png"]
+    assert result_names(pair) == ["a_png_cuboids.json", "a_npy_cuboids.json", "b_cuboids.json"]
+    deep = [tmp_path / "x" / "y" / "r.ply", tmp_path / "z" / "y" / "r.ply", tmp_path / "x" / "y" / "r.ply"]
+    assert result_names(deep) == ["x_y_r_ply_0_cuboids.json", "z_y_r_ply_cuboids.json",
+                                  "x_y_r_ply_2_cuboids.json"]  # fmt: skip
+    job = Job(CONFIG)
+    tasks, skipped = folder_tasks(job, [a, b, c], tmp_path / "out", skip_existing=True)
+    assert [Path(t[2]).name for t in tasks] == names and skipped == []

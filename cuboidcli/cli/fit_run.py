@@ -166,7 +166,7 @@ def fit_folder(job: Job, request: FitRequest, stream=None) -> None:
     """Fit every input of a folder (its depth maps, its photos, or its rooms), one JSON each, on the
     request's engine; inputs whose outputs exist are skipped; ends with a summary, exit 1 if any failed.
     With ``rrd`` among the outputs a folder of frames gets one recording of all its frames."""
-    from cuboidcli.export.files import FOLDER_RECORDING, result_name, results_folder
+    from cuboidcli.export.files import FOLDER_RECORDING, result_names, results_folder
     from cuboidcli.job import fit_task, folder_inputs, folder_tasks
     from cuboidcli.scaleout import Outcome, Summary
 
@@ -208,19 +208,20 @@ def fit_folder(job: Job, request: FitRequest, stream=None) -> None:
         nonlocal said_source
         n, seconds, what = res.value
         if job.kind == "room":
-            return f"{res.name}: {n} cuboids, {what} points, {seconds:.1f} s"
+            return f"{names[i]}: {n} cuboids, {what} points, {seconds:.1f} s"
         if source == "photo" and not said_source:
             _note(what, "[cyan]note:[/]")
             said_source = True
         if stream is not None:
             stream.add(tasks[i][2])
-        return f"{res.name}: {n} cuboids, {seconds:.2f} s"
+        return f"{names[i]}: {n} cuboids, {seconds:.2f} s"
 
     label = f"fitting {len(tasks)} {'rooms' if job.kind == 'room' else 'frames'} on {request.run.describe()}"
-    names = [Path(t[1]).name for t in tasks]
+    # a room found in a sub-folder is named with its folders (two may both be room.ply)
+    names = [Path(t[1]).relative_to(folder).as_posix() for t in tasks]
     run_with_progress(fit_task, tasks, names, request.run, summary, quiet, label, describe)
     if isinstance(stream, FolderRecording):
-        path = stream.write(out_dir / FOLDER_RECORDING, [out_dir / result_name(f) for f in files])
+        path = stream.write(out_dir / FOLDER_RECORDING, [out_dir / n for n in result_names(files)])
         if not quiet:
             out.print(f"wrote {path}")
     end_of_run(summary, out_dir, quiet)

@@ -43,8 +43,9 @@ def skip_existing_option(help: str):
 def run_with_progress(fn, tasks, names, engine, summary, quiet: bool, label: str, describe) -> None:
     """Run ``fn(*task)`` for every task on ``engine`` (an object with ``workers`` and ``ray``, as
     :func:`cuboidcli.scaleout.run_tasks` takes them) behind a progress bar titled ``label``. Each outcome
-    joins ``summary``; its notes and a failure are printed in one line each; ``describe(i, outcome)`` gives
-    the bar's text for a finished task. One line and exit 2 when the engine cannot start."""
+    joins ``summary``; its notes and a failure are printed in one line each, under the task's name in
+    ``names``; ``describe(i, outcome)`` gives the bar's text for a finished task. One line and exit 2 when
+    the engine cannot start."""
     from rich.progress import TimeElapsedColumn
 
     from cuboidcli.cli.common import console, progress_bar
@@ -56,10 +57,10 @@ def run_with_progress(fn, tasks, names, engine, summary, quiet: bool, label: str
         def on_result(i: int, res) -> None:
             summary.add(res)
             for note in res.notes:
-                console.print(f"[yellow]warning:[/] {res.name}: {note}", highlight=False)
+                console.print(f"[yellow]warning:[/] {names[i]}: {note}", highlight=False)
             if res.status == "failed":
-                console.print(f"[red]failed[/] {res.name}: {res.message}", highlight=False)
-                desc = f"{res.name}: failed"
+                console.print(f"[red]failed[/] {names[i]}: {res.message}", highlight=False)
+                desc = f"{names[i]}: failed"
             else:
                 desc = describe(i, res)
             prog.update(task, advance=1, description=desc)

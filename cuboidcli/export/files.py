@@ -21,6 +21,7 @@ __all__ = [
     "output_paths",
     "ply_paths",
     "result_name",
+    "result_names",
     "result_stem",
     "results_folder",
     "scene_path",
@@ -35,6 +36,27 @@ def result_name(source: str | Path) -> str:
     ``<name>_cuboids.json`` for a folder (a sequence)."""
     p = Path(source)
     return f"{p.name if p.is_dir() else p.stem}_cuboids.json"
+
+
+def result_names(sources: Iterable[str | Path]) -> list[str]:
+    """The result JSONs of a folder's inputs, one each: :func:`result_name`, except where inputs would share
+    it: those are named by their whole file name (``a.png`` and ``a.npy``: ``a_png_cuboids.json``), then
+    also by their folder and the one above while they still share (``scans/a/room.ply`` and
+    ``scans/b/room.ply``: ``a_room_ply_cuboids.json``), and numbered if even that is shared. The same inputs
+    always get the same names, so a rerun finds its results."""
+    paths = [Path(s) for s in sources]
+    names = [result_name(p) for p in paths]
+    for level in range(3):
+        shared = {n for n in names if names.count(n) > 1}
+        for i, p in enumerate(paths):
+            if names[i] in shared:
+                parts = [*p.parent.parts[len(p.parent.parts) - level :], p.name.replace(".", "_")]
+                names[i] = "_".join(parts) + "_cuboids.json"
+    shared = {n for n in names if names.count(n) > 1}
+    return [
+        f"{n.removesuffix('_cuboids.json')}_{i}_cuboids.json" if n in shared else n
+        for i, n in enumerate(names)
+    ]
 
 
 def results_folder(folder: str | Path) -> Path:
