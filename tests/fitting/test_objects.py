@@ -212,7 +212,7 @@ def test_a_table_top_without_its_legs_stands_on_the_floor():
     floor = _grid((0, 0, 0), (4, 4, 0))
     top, _ = _table(0.5, 0.5)  # 1.0 x 0.6 m at 0.75 m, no legs
     shelf = _grid((2.5, 0.5, 1.4), (3.5, 1.1, 1.4))
-    ledge = _grid((0.5, 2.5, 0.75), (1.5, 2.8, 0.75))  # 0.3 m deep
+    ledge = _grid((2.0, 2.0, 0.75), (2.3, 3.0, 0.75))  # 0.3 m deep
     loose = _grid((2.5, 2.5, 0.75), (3.5, 3.1, 0.75))
     low = _grid((0.5, 3.4, 0.3), (0.8, 3.6, 0.5))  # a chair's seat and back, its legs unseen
     tall = _grid((3.4, 3.4, 0.3), (3.6, 3.6, 1.4))
@@ -224,7 +224,7 @@ def test_a_table_top_without_its_legs_stands_on_the_floor():
         Cuboid([2, 2, -0.02], [2, 2, 0.02], np.eye(3), kind="floor"),
         Cuboid([1.0, 0.8, 0.75], [0.5, 0.3, 0.005], np.eye(3), kind="object"),
         Cuboid([3.0, 0.8, 1.4], [0.5, 0.3, 0.005], np.eye(3), kind="object"),
-        Cuboid([1.0, 2.65, 0.75], [0.5, 0.15, 0.005], np.eye(3), kind="object"),
+        Cuboid([2.15, 2.5, 0.75], [0.15, 0.5, 0.005], np.eye(3), kind="object"),
     ]
     objects = group_objects(pts, labels, cuboids, np.array([0.0, 0.0, 1.0]), VOXEL)
     bottoms = {o.cuboids: round(float(_extent(o.box)[0][2]), 3) for o in objects}
@@ -236,3 +236,36 @@ def test_a_table_top_without_its_legs_stands_on_the_floor():
     assert unseeded[3.0][0][2] > 0.7 and unseeded[3.5][0][2] > 0.25
     table = next(o for o in objects if o.cuboids == (1,))
     np.testing.assert_allclose(_extent(table.box)[1][2], 0.75 + VOXEL / 2, atol=1e-6)
+
+
+def test_standing_on_unseen_legs_is_measured_from_the_floor_under_the_box():
+    """The same rules on a floor 0.3 m up (heights count from it): a slab whose top is 0.5 m above the floor
+    stands, and so does an unseeded box from 0.2 m up; an unseeded box from 0.6 to 0.9 m above the floor
+    (over the 0.45 m low bound, no slab) floats;
+    a table top with a skirt down to 0.5 m and a bracket under it (two seeds, one of them a slab) stands;
+    the slab cuboid first in the list (index 0) counts as a seed like any other; a ledge 0.3 m deep floats."""
+    base = 0.3
+    floor = _grid((0, 0, base), (4, 4, base))
+    low_slab = _grid((0.5, 0.5, base + 0.5), (1.3, 1.1, base + 0.5))
+    loose = _grid((2.5, 0.5, base + 0.6), (2.8, 0.8, base + 0.9))
+    top = _grid((0.5, 2.5, base + 0.75), (1.5, 3.1, base + 0.75))
+    skirt = np.concatenate([_grid((0.5, y, base + 0.5), (1.5, y, base + 0.72)) for y in (2.5, 3.1)])
+    bracket = _grid((0.9, 2.8, base + 0.55), (1.1, 2.8, base + 0.66))
+    low = _grid((3.0, 3.0, base + 0.2), (3.2, 3.2, base + 0.4))
+    ledge = _grid((2.0, 3.5, base + 0.75), (3.0, 3.8, base + 0.75))  # 0.3 m deep along y
+    pts = np.concatenate([floor, low_slab, loose, top, skirt, bracket, low, ledge])
+    labels = np.concatenate([np.full(len(floor), 1), np.zeros(len(low_slab)), np.full(len(loose), -1),
+                             np.full(len(top), 2), np.full(len(skirt), -1), np.full(len(bracket), 3),
+                             np.full(len(low), -1), np.full(len(ledge), 4)]).astype(np.int32)  # fmt: skip
+    cuboids = [
+        Cuboid([0.9, 0.8, base + 0.5], [0.4, 0.3, 0.005], np.eye(3), kind="object"),
+        Cuboid([2, 2, base - 0.02], [2, 2, 0.02], np.eye(3), kind="floor"),
+        Cuboid([1.0, 2.8, base + 0.75], [0.5, 0.3, 0.005], np.eye(3), kind="object"),
+        Cuboid([1.0, 2.8, base + 0.6], [0.1, 0.005, 0.06], np.eye(3), kind="object"),
+        Cuboid([2.5, 3.65, base + 0.75], [0.5, 0.15, 0.005], np.eye(3), kind="object"),
+    ]
+    objects = group_objects(pts, labels, cuboids, np.array([0.0, 0.0, 1.0]), VOXEL)
+    bottoms = {o.cuboids: round(float(_extent(o.box)[0][2]), 3) for o in objects}
+    assert bottoms[(0,)] == base and bottoms[(2, 3)] == base and bottoms[(4,)] > base + 0.7
+    unseeded = sorted(round(float(_extent(o.box)[0][2]), 3) for o in objects if not o.cuboids)
+    assert len(unseeded) == 2 and unseeded[0] == base and unseeded[1] > base + 0.55
