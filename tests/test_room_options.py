@@ -205,3 +205,44 @@ def test_points_in_memory_fit_as_the_same_points_in_a_ply(room):
     cloud = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(box_room()))
     from_o3d = fitter.fit(cloud)
     assert [c.center.tolist() for c in from_o3d.cuboids] == [c.center.tolist() for c in from_array.cuboids]
+
+
+def _linked_folder(tmp_path: Path, **rooms: Path) -> Path:
+    """A folder of rooms: each room (a scan file or a sequence folder) linked under its given name."""
+    folder = tmp_path / "rooms"
+    folder.mkdir()
+    for name, target in rooms.items():
+        (folder / (name + target.suffix)).symlink_to(target, target_is_directory=target.is_dir())
+    return folder
+
+
+@pytest.mark.parametrize(
+    ("kinds", "args", "message"),
+    [
+        (("scan",), ("-K", "500,500,320,240"), "-K does not apply to a room"),
+        (("sequence",), ("--unit", "mm"), "--unit does not apply to a room"),
+        (("scan", "sequence"), ("-K", "500,500,320,240"), "-K reads only the sequences of the folder"),
+        (("scan", "sequence"), ("--unit", "mm"), "--unit reads only the scan files of the folder"),
+    ],
+)
+def test_a_folder_of_rooms_refuses_an_option_its_rooms_do_not_read(
+    room, sequence, tmp_path, kinds, args, message
+):
+    """Checked against the rooms the folder holds, before any is fitted: without it every scan of a folder
+    given -K failed on its own (a line each, exit 1)."""
+    folder = _linked_folder(tmp_path, **{k: {"scan": room, "sequence": sequence}[k] for k in kinds})
+    out = tmp_path / "out"
+    r = run("fit", folder, "-o", out, *args, *QUICK)
+    assert r.exit_code == 2, r.output
+    assert message in r.output and len(r.output.strip().splitlines()) == 1, r.output
+    assert not out.exists()
+
+
+def test_a_folder_of_sequences_records_their_loading_options(sequence, tmp_path):
+    folder = _linked_folder(tmp_path, seq=sequence)
+    out = tmp_path / "out"
+    r = run("fit", folder, "-o", out, "--every", "2", "--max-cuboids", "4", *QUICK)
+    assert r.exit_code == 0, r.output
+    (result,) = out.glob("*_cuboids.json")
+    settings = json.loads(result.read_text())["settings"]
+    assert settings["load"]["every"] == 2 and settings["max_cuboids"] == 4

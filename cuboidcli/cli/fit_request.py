@@ -89,12 +89,21 @@ class FitRequest:
                 fail(f"{_flag(name)} does not apply to {what}; leave it out")
         if self.kind == "room" and self.config.sampler == "learned":
             fail("--sampler learned weighs the pixels of a depth map; a room is fitted with sequential")
-        sources = ("scan", "sequence") if self.source is None else (self.source,)
+        if self.source is not None:
+            sources: tuple[str, ...] = (self.source,)
+        else:  # rooms: a folder's own kinds of room, else one room told from its files when loaded
+            sources = _room_sources(self.path) if self.folder else ("scan", "sequence")
         default = LoadOptions()
         for f in fields(LoadOptions):
             value = getattr(self.load, f.name)
-            if value != getattr(default, f.name) and not any(s in _applies(f.name) for s in sources):
+            if value == getattr(default, f.name):
+                continue
+            if not any(s in _applies(f.name) for s in sources):
                 fail(f"{_flag(f.name)} does not apply to {what}; leave it out")
+            if self.folder and self.source is None and not all(s in _applies(f.name) for s in sources):
+                # a folder of scans and sequences: each room the option does not fit would fail on its own
+                fits = "sequences" if "sequence" in _applies(f.name) else "scan files"
+                fail(f"{_flag(f.name)} reads only the {fits} of the folder {self.path}; fit those apart")
         if self.source == "depth" and self.image is not None and self.image.is_dir():
             fail("IMAGE is a folder: give it without --depth (depth from the images) or use --depth FOLDER")
         if self.source == "depth" and self.image is not None and self.folder:
@@ -169,6 +178,24 @@ TYPED_APPLIES: dict[str, tuple[str, ...]] = {
         ("photo",),
     ),
 }  # fmt: skip
+
+
+def _room_sources(path: Path) -> tuple[str, ...]:
+    """What the rooms at ``path`` are: a folder of rooms' ("scan" for its scan files, "sequence" for its
+    sequence folders, in that order), else both (one room, told from its files when it is loaded)."""
+    from cuboidcli.job import rooms_in
+
+    if not path.is_dir() or _is_sequence(path):
+        return ("scan", "sequence")
+    rooms = rooms_in(path)
+    kinds = tuple(k for k in ("scan", "sequence") if any((r.is_dir()) == (k == "sequence") for r in rooms))
+    return kinds or ("scan", "sequence")
+
+
+def _is_sequence(path: Path) -> bool:
+    from cuboidcli.io.sequence import sequence_layout
+
+    return sequence_layout(path) is not None
 
 
 def _sources(request: FitRequest) -> tuple[str, ...]:
