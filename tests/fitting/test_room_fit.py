@@ -254,6 +254,31 @@ def test_a_low_upright_slab_is_furniture_not_a_wall():
     assert turned.kind == "object"
 
 
+def test_a_wall_whose_top_the_scan_missed_stays_a_wall():
+    """Real scans often stop at 1.5-2 m: a slab as tall and long as a stretch of wall is still a wall when
+    its top is far below the room's; one a little shorter either way is furniture."""
+    from cuboidcli.fitting.room import CUT_WALL_LONG_M, CUT_WALL_TALL_M, low_walls_are_furniture
+
+    points = np.random.default_rng(0).uniform([0, 0, 0], [4, 3, 2.5], (2000, 3))
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    yaw = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    def slab(length, height, rotation=np.eye(3)):
+        return Cuboid([0.2, 1.5, height / 2], [0.005, length / 2, height / 2], rotation, kind="wall")
+
+    cut = slab(3.0, 1.4)
+    turned = slab(1.6, 1.25, yaw)
+    narrow = slab(1.4, 1.6)
+    low = slab(3.0, 1.1)
+    low_walls_are_furniture([cut, turned, narrow, low], points, np.array([0.0, 0.0, 1.0]))
+    assert [c.kind for c in (cut, turned, narrow, low)] == ["wall", "wall", "object", "object"]
+    assert (CUT_WALL_TALL_M, CUT_WALL_LONG_M) == (1.2, 1.5)
+    # with up along +x: 1.6 m tall along x, 2 m long along z
+    on_side = Cuboid([0.8, 0.2, 1.5], [0.8, 0.005, 1.0], np.eye(3), kind="wall")
+    low_walls_are_furniture([on_side], points[:, ::-1], np.array([1.0, 0.0, 0.0]))
+    assert on_side.kind == "wall"
+
+
 def test_the_real_living_room_fragment_stands_upright_without_an_up_hint():
     """The real living-room fragment is stored in a camera's frame (y down): fitted with no --up, its large
     wall is a wall (not a ceiling, as with z up), and the fit says in one warning that its up is unsure."""
