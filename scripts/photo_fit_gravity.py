@@ -2,7 +2,7 @@
 
 For every "cuboids/1" result in the given folders whose name is a real frame of ../shared/data (the five
 NYU frames and the TUM frame: ``basement_00000.json`` as ``cuboids evaluate --save-fits`` names it, or
-``basement_00000_rgb.json`` as ``cuboids fit basement_00000_rgb.jpg -o DIR/`` does), the angle between
+``basement_00000_rgb_cuboids.json`` as ``cuboids fit basement_00000_rgb.jpg -o DIR/`` does), the angle between
 its ``gravity.down`` and the down direction of the frame's true depth
 (:func:`cuboidcli.geometry.gravity.estimate_gravity` on the depth back-projected with the true camera,
 every 8th pixel), with the result's ``gravity.source`` and its focal length against the true one.
@@ -60,7 +60,7 @@ def main() -> None:
         errors = []
         print(f"{folder}:")
         for path in sorted(folder.glob("*.json")):
-            name = path.stem.removesuffix("_rgb")
+            name = path.stem.removesuffix("_cuboids").removesuffix("_rgb")
             if name not in truth:
                 continue
             down, cam = truth[name]
@@ -75,6 +75,9 @@ def main() -> None:
                 f"{result['input'].get('intrinsics_source') or '-'}"
             )
         finite = [e for e in errors if math.isfinite(e)]
+        if not finite:
+            print("  no fits of the real frames here: fit them first (cuboids fit PHOTO -o DIR/)")
+            continue
         print(
             f"  within 5 deg: {sum(e <= 5.0 for e in finite)}/{len(errors)}; "
             f"range {min(finite):.2f}-{max(finite):.2f}, median {float(np.median(finite)):.2f}"
