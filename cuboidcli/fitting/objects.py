@@ -40,7 +40,7 @@ import numpy as np
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
-from cuboidcli.fitting.not_objects import is_floor_patch, on_wall, wall_coloured
+from cuboidcli.fitting.not_objects import is_bent_floor, is_floor_patch, on_wall, wall_coloured
 from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
 from cuboidcli.geometry.gravity import level_frame
 
@@ -371,7 +371,8 @@ def group_objects(
         floor_z = float(np.median(under_q[members]))
         score = object_score(q[members] @ _yaw_matrix(headings[g]), lo, hi, voxel_m, lo[2] <= floor_z)
         high = lo[2] - floor_z > HIGH_M and score < HIGH_SCORE
-        flat = is_floor_patch(q[members, 2] - under_q[members], float(hi[2] - floor_z))
+        heights = q[members, 2] - under_q[members]
+        flat = is_floor_patch(heights, float(hi[2] - floor_z)) or is_bent_floor(q[members], heights)
         wall_piece = on_wall(box, walls) or wall_coloured(box, colors, idx[members], walls, wall_colour)
         if flat or high or wall_piece:
             continue

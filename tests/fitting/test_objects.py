@@ -204,6 +204,39 @@ def test_a_flat_patch_just_above_the_floor_is_the_floors():
     assert len(with_points(shelf)) == base + 1
 
 
+def test_a_tilted_stretch_of_floor_is_the_floors():
+    """Where a scan's floor bends (a drifted reconstruction) a stretch of it rises over the floor cuboid: a
+    plane 7-10 degrees from level within 0.35 m of the floor is left out. A level lid, a plane as tilted
+    whose top is 0.45 m up, one tilted 20 degrees, and a tilted layer 8 cm thick stay objects."""
+    pts, labels, cuboids = _room()
+    up = np.array([0.0, 0.0, 1.0])
+    base = len(group_objects(pts, labels, cuboids, up, VOXEL))
+
+    def count_with(more):
+        return len(
+            group_objects(
+                np.concatenate([pts, more]),
+                np.concatenate([labels, np.full(len(more), -1, dtype=np.int32)]),
+                cuboids,
+                up,
+                VOXEL,
+            )
+        )
+
+    def sloped(z0, degrees, lo=(2.2, 2.2), hi=(3.4, 3.2)):
+        plane = _grid((*lo, 0.0), (*hi, 0.0))
+        plane[:, 2] = z0 + np.tan(np.radians(degrees)) * (plane[:, 0] - lo[0])
+        return plane
+
+    assert count_with(sloped(0.08, 8.0)) == base  # 0.08 -> 0.25 m
+    assert count_with(sloped(0.08, 5.0)) == base
+    assert count_with(sloped(0.15, 1.0)) == base + 1  # a lid lies level
+    assert count_with(sloped(0.25, 8.0)) == base + 1  # up to 0.42 m: a seat's slope, not the floor
+    assert count_with(sloped(0.08, 20.0, hi=(2.8, 3.2))) == base + 1  # 0.08 -> 0.30 m, too steep
+    thick = np.concatenate([sloped(0.08, 8.0), sloped(0.16, 8.0)])
+    assert count_with(thick) == base + 1  # two layers 8 cm apart: something with height
+
+
 def test_a_table_top_without_its_legs_stands_on_the_floor():
     """A real scan often misses thin legs: a level slab floating at table height, wide enough for a table
     or a seat, and a low floating box are extended down to the floor; a shelf board 1.4 m up, a narrow
