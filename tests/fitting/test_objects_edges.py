@@ -11,7 +11,7 @@ import pytest
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting import objects
-from cuboidcli.fitting.not_objects import is_floor_patch, near_wall, on_wall, wall_coloured
+from cuboidcli.fitting.not_objects import is_bent_floor, is_floor_patch, near_wall, on_wall, wall_coloured
 from cuboidcli.fitting.objects import SceneObject, floor_heights, group_objects, object_score
 
 VOXEL = 0.035
@@ -564,6 +564,30 @@ def test_floor_patch_percentiles_at_their_bounds():
     assert is_floor_patch(median, 0.25)  # p50 = 0.1, p90 - p10 = 0.1; p51 would be 0.11
     low_tail = np.array([0.0, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05])
     assert is_floor_patch(low_tail, 0.1)
+
+
+def _slope(degrees, n_side=4, z0=0.05, length=1.0):
+    """n_side x n_side points on a plane rising ``degrees`` along x from ``z0``, their heights above a
+    floor at 0."""
+    x, y = np.meshgrid(np.linspace(0.0, length, n_side), np.linspace(0.0, 0.6, n_side))
+    z = z0 + np.tan(np.radians(degrees)) * x
+    level = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    return level, level[:, 2].copy()
+
+
+def test_bent_floor_bounds():
+    assert is_bent_floor(*_slope(3.5))
+    assert not is_bent_floor(*_slope(2.5))
+    assert is_bent_floor(*_slope(14.5, length=0.4))
+    assert not is_bent_floor(*_slope(15.5, length=0.4))
+    ten = _slope(8.0, n_side=5)[0][:10]
+    assert is_bent_floor(ten, ten[:, 2])  # ten points are enough
+    assert not is_bent_floor(ten[:9], ten[:9, 2])
+    level, heights = _slope(8.0)
+    heights[0] = 0.35  # the highest point exactly at the bound
+    assert is_bent_floor(level, heights)
+    heights[0] = 0.351
+    assert not is_bent_floor(level, heights)
 
 
 # --- exact boundaries, with a voxel of a quarter metre (all the sums below are exact in binary) -----------
