@@ -36,8 +36,8 @@ from cuboidcli.sampling import SpaceCells
 WALL_TOP_GAP_M = 0.5
 #: ... unless it is at least :data:`CUT_WALL_TALL_M` tall and :data:`CUT_WALL_LONG_M` long (m): a stretch of
 #: wall whose upper part the scan missed (real scans often stop at 1.5-2 m), with nothing behind it. Backs of
-#: sofas and sides of beds are lower, ends of shelves shorter. On the 10 real ScanNet scans (seeds 0-2)
-#: 4-9 such slabs over the 10 scans a seed, each seeding wall-sized boxes: precision 72.7 / 66.7 / 69.4
+#: sofas and sides of beds are lower, ends of shelves shorter. On the 10 real ScanNet scans, seeds 0-2: 4-9
+#: such slabs a seed, each seeding wall-sized boxes; precision 72.7 / 66.7 / 69.4
 #: -> 75.3 / 70.5 / 70.9 %, recall at IoU 0.25 59.1 -> 57.7 / 58.4 / 58.4 % (the lost matches were those
 #: wall boxes overlapping a door in them).
 CUT_WALL_TALL_M = 1.2
