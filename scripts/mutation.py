@@ -217,6 +217,8 @@ TARGETS = (
         )
         for name in ("objects", "not_objects")
     ),
+    # the sinks set into a counter's top
+    Target("basins", "cuboidcli/fitting/basins.py", None, ("tests/fitting/test_basins.py",)),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.
