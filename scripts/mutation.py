@@ -217,8 +217,9 @@ TARGETS = (
         )
         for name in ("objects", "not_objects")
     ),
-    # the sinks set into a counter's top
+    # the sinks set into a counter's top, and seats side by side under one back
     Target("basins", "cuboidcli/fitting/basins.py", None, ("tests/fitting/test_basins.py",)),
+    Target("seats", "cuboidcli/fitting/seats.py", None, ("tests/fitting/test_seats.py",)),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.

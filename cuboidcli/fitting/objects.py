@@ -19,7 +19,9 @@ groups, after the fit, without changing the cuboids:
 5. Each group's box is upright (its vertical axis the room's up), turned to the yaw of its cuboid (of its
    points' principal axis for a group without one), around its points; a box that comes within
    :data:`FLOOR_TOUCH` voxels of the floor stands on it, and so does a low box or a table top or a seat
-   floating at table height (:data:`STAND_TOP_M`): its legs were too thin for the scan.
+   floating at table height (:data:`STAND_TOP_M`): its legs were too thin for the scan. A group whose box
+   holds two or more pieces of one level slab lying apart (two seats under one back) is shared out among
+   them first (:mod:`~cuboidcli.fitting.seats`).
 6. Each object gets a score in [0, 1], how sure the grouping is that the box holds one object
    (:func:`object_score`); detection-style evaluations rank the boxes by it.
 7. Boxes that are the wall's own (:func:`~cuboidcli.fitting.not_objects.on_wall`; thicker ones flat
@@ -43,6 +45,7 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.basins import object_basins
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.fitting.not_objects import is_bent_floor, is_floor_patch, on_wall, wall_coloured
+from cuboidcli.fitting.seats import is_level_slab, nearest_piece, pieces_inside
 from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
 from cuboidcli.geometry.gravity import level_frame
 
@@ -60,8 +63,6 @@ MIN_OBJECT_POINTS = 20
 GROW_LIMIT_M = 1.5
 #: Points this many voxels or closer to a floor, wall or ceiling cuboid belong to the shell.
 SHELL_CLEARANCE = 1.5
-#: A level object cuboid at most this thick is a top: its object takes nothing above it (m).
-TOP_SLAB_M = 0.1
 #: A group whose box lies at least this much (share of its volume) inside a larger group's box joins it.
 MERGE_OVERLAP = 0.9
 #: A point's floor is the highest floor cuboid whose footprint comes this close to it (m), else the nearest
@@ -284,12 +285,9 @@ def group_objects(
             group[piece == root] = len(seeds)
             seeds.append(int(lab[root]))
     # a level slab (a table top, a shelf board) takes what hangs below it, not what stands on it
-    ceiling = np.full(len(seeds), np.inf)
-    for g, part in enumerate(seeds):
-        c = cuboids[part]
-        thin = int(np.argmin(c.half_size))
-        if c.half_size[thin] <= TOP_SLAB_M / 2 and abs(c.rotation[:, thin] @ z) > math.cos(math.radians(20)):
-            ceiling[g] = c.top(z) + voxel_m
+    # (:func:`~cuboidcli.fitting.seats.is_level_slab`)
+    slabs = {i for i, c in enumerate(cuboids) if c.kind == "object" and is_level_slab(c, z)}
+    ceiling = np.array([cuboids[p].top(z) + voxel_m if p in slabs else np.inf for p in seeds])
     group = grow_labels(group, pairs, max(1, int(GROW_LIMIT_M / voxel_m)), level[idx, 2], ceiling)
 
     # points no seed reached: objects of their own
@@ -334,6 +332,15 @@ def group_objects(
             known[(g, h)] = (lo.tolist(), hi.tolist(), float(np.prod(hi - lo)))
         return known[(g, h)]
 
+    for a in sorted(groups, key=lambda g: -len(groups[g])):  # seats side by side under one back
+        if a in groups and (pieces := pieces_inside(a, groups, seeds, slabs, box_of, MERGE_OVERLAP)):
+            near = nearest_piece(
+                (q[groups[a]] @ _yaw_matrix(headings[a]))[:, :2], [box_of(b, a) for b in pieces]
+            )
+            for k, b in enumerate(pieces):
+                groups[b] = np.concatenate([groups[b], groups[a][near == k]])
+            del groups[a]
+            known.clear()
     merged = True
     while merged:
         merged = False

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.basins import ABOVE_M, DEPTH_M, SIZE_M, TOP_M, find_basins
+from cuboidcli.fitting.basins import ABOVE_M, DEPTH_M, SIZE_M, TOP_M, find_basins, object_basins
 from cuboidcli.fitting.objects import group_objects
 
 VOXEL = 0.035
@@ -114,6 +114,18 @@ def test_a_drains_few_deeper_points_keep_the_sink():
     assert basin[0][2] > 0.9 - DEPTH_M[1]  # the box ends at the bowl's lowest point within reach
 
 
+def test_points_beyond_the_objects_footprint_do_not_close_its_dent():
+    """object_basins looks at the points over the object's box only: a chair's seat at counter height just
+    in front of a dent open at the counter's front edge does not close it."""
+    counter = _counter(sink=((0.7, 1.1), (-0.1, 0.4)))
+    seat = _sheet(0.5, 1.3, -0.3, -0.02, 0.9)
+    level = np.concatenate([counter, seat])
+    members = np.arange(len(counter))
+    lo, hi = np.array([0.0, 0.0, 0.0]), np.array([1.8, 0.6, 0.9])
+    assert object_basins(level, level[:, 2], members, np.eye(3), lo, hi, VOXEL) == []
+    assert len(find_basins(level, level[:, 2], level[:, 2], VOXEL)) == 1  # over everything, it is closed
+
+
 def test_the_bowls_points_may_belong_to_another_group():
     pts = _counter()
     rim = pts[pts[:, 2] >= 0.9 - 1e-9]
@@ -169,6 +181,19 @@ def test_what_is_no_sink(case):
     else:  # a dent that reaches the counter's edge is not closed in
         pts = _counter(sink=((0.7, 1.1), (-0.1, 0.4)))
     assert _basins(pts) == []
+
+
+@pytest.mark.parametrize(
+    "sink",
+    [
+        ((-0.1, 0.3), (0.1, 0.5)),
+        ((1.5, 1.9), (0.1, 0.5)),
+        ((0.7, 1.1), (-0.1, 0.3)),
+        ((0.7, 1.1), (0.3, 0.7)),
+    ],
+)
+def test_a_dent_open_at_any_edge_is_no_sink(sink):
+    assert _basins(_counter(sink=sink)) == []
 
 
 def test_a_counter_with_a_sink_gives_a_second_object():

@@ -1,0 +1,113 @@
+"""Seats side by side under one back (cuboidcli.fitting.seats): two armchairs whose backs one cuboid explains
+are two objects; one long seat or two cushions close together (a sofa) stay one; pieces that overlap, or of
+an upright cuboid, split nothing."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cuboidcli.cuboid import Cuboid
+from cuboidcli.fitting.objects import group_objects
+from cuboidcli.fitting.seats import is_level_slab, nearest_piece, pieces_inside
+from tests.fitting.test_objects import VOXEL, _grid
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def _armchairs(gap):
+    """Two armchairs 0.6 m wide side by side, ``gap`` apart: one cuboid (1) explains both backs and their
+    arms (its inliers touch: one seed), another (2) both seats, a level slab (two seeds when they lie
+    apart); a floor (0)."""
+    width = 0.6
+    total = 2 * width + gap
+    floor = _grid((-0.5, -0.5, 0), (2.5, 1.5, 0))
+    seats = [_grid((x0, 0.0, 0.42), (x0 + width, 0.55, 0.42)) for x0 in (0.0, width + gap)]
+    back = _grid((0.0, 0.6, 0.45), (total, 0.6, 0.9))
+    arms = [_grid((x, 0.0, 0.1), (x, 0.58, 0.65)) for x in (0.0, width + 0.03, width + gap - 0.03, total)]
+    pts = np.concatenate([floor, *seats, back, *arms])
+    n_seats, n_back = sum(map(len, seats)), len(back) + sum(map(len, arms))
+    labels = np.concatenate([np.zeros(len(floor)), np.full(n_seats, 2), np.full(n_back, 1)]).astype(np.int32)
+    cuboids = [
+        Cuboid([1.0, 0.5, -0.02], [1.5, 1.0, 0.02], np.eye(3), kind="floor"),
+        Cuboid([total / 2, 0.31, 0.5], [total / 2, 0.31, 0.4], np.eye(3), kind="object"),
+        Cuboid([total / 2, 0.275, 0.42], [total / 2, 0.275, 0.01], np.eye(3), kind="object"),
+    ]
+    return pts, labels, cuboids
+
+
+def test_two_armchairs_under_one_back_are_two_objects():
+    objects = group_objects(*_armchairs(gap=0.2), UP, VOXEL)
+    assert len(objects) == 2
+    left, right = sorted(objects, key=lambda o: o.box.center[0])
+    (l_lo, l_hi), (r_lo, r_hi) = ((o.box.corners().min(0), o.box.corners().max(0)) for o in (left, right))
+    assert left.cuboids == right.cuboids == (1, 2)
+    # the back over the 20 cm gap between the seats is shared at its middle (0.7 m)
+    np.testing.assert_allclose([l_lo[0], l_hi[0], r_lo[0], r_hi[0]], [0.0, 0.7, 0.7, 1.4], atol=VOXEL)
+    for lo, hi in ((l_lo, l_hi), (r_lo, r_hi)):
+        assert lo[2] == 0.0 and abs(hi[2] - 0.9) <= VOXEL
+
+
+@pytest.mark.parametrize("gap", [0.0, 0.08])
+def test_one_sofa_under_its_back_is_one_object(gap):
+    """One long seat, or two cushions whose gap the scan bridges in places, is one sofa."""
+    (sofa,) = group_objects(*_armchairs(gap=gap), UP, VOXEL)
+    lo, hi = sofa.box.corners().min(0), sofa.box.corners().max(0)
+    assert abs(lo[0]) <= VOXEL and abs(hi[0] - (1.2 + gap)) <= VOXEL
+
+
+def _box(lo, hi):
+    return (list(lo), list(hi), float(np.prod(np.subtract(hi, lo))))
+
+
+@pytest.mark.parametrize(
+    ("pieces", "slabs", "expected"),
+    [
+        ({1: ((0, 0, 0), (0.6, 0.5, 0.4)), 2: ((0.75, 0, 0), (1.3, 0.5, 0.4))}, {5}, [1, 2]),  # two seats
+        ({1: ((0, 0, 0), (0.6, 0.5, 0.4)), 2: ((0.65, 0, 0), (1.3, 0.5, 0.4))}, {5}, []),  # 5 cm apart
+        ({1: ((0, 0, 0), (0.6, 0.5, 0.4)), 2: ((0.6, 0, 0), (1.3, 0.5, 0.4))}, {5}, []),  # touching
+        ({1: ((0, 0, 0), (0.7, 0.5, 0.4)), 2: ((0.6, 0, 0), (1.3, 0.5, 0.4))}, {5}, []),  # overlapping
+        ({1: ((0, 0, 0), (0.6, 0.5, 0.2)), 2: ((0, 0, 0.5), (0.6, 0.5, 0.9))}, {5}, []),  # stacked
+        ({1: ((0, 0, 0), (0.6, 0.5, 0.4)), 2: ((0.75, 0, 0), (1.3, 0.5, 0.4))}, set(), []),  # no slab
+        ({1: ((0, 0, 0), (0.6, 0.5, 0.4))}, {5}, []),  # one piece
+        (
+            {
+                1: ((0, 0, 0), (0.4, 0.5, 0.4)),
+                2: ((0.55, 0, 0), (1.3, 0.5, 0.4)),
+                3: ((0.8, 0, 0), (1.3, 0.2, 0.4)),
+            },
+            {5},
+            [],
+        ),
+        (
+            {
+                1: ((0, 0, 0), (0.4, 0.5, 0.4)),
+                2: ((0.55, 0, 0), (0.85, 0.5, 0.4)),
+                3: ((1.0, 0, 0), (1.3, 0.5, 0.4)),
+            },
+            {5},
+            [1, 2, 3],
+        ),
+        ({1: ((0, 0, 0), (0.6, 0.5, 0.4)), 2: ((1.0, 0, 0), (1.6, 0.5, 0.4))}, {5}, []),  # one sticks out
+    ],
+)
+def test_pieces_inside(pieces, slabs, expected):
+    boxes = {0: _box((0, 0, 0), (1.3, 0.6, 0.9)), **{g: _box(*b) for g, b in pieces.items()}}
+    groups = dict.fromkeys(boxes)
+    seeds = [4, 5, 5, 5]
+    assert pieces_inside(0, groups, seeds, slabs, lambda g, h: boxes[g], 0.9) == expected
+    assert pieces_inside(0, groups, [-1, 5, 5, 5], slabs, lambda g, h: boxes[g], 0.9) == []  # a cluster
+
+
+def test_nearest_piece_and_level_slabs():
+    boxes = [_box((0, 0, 0), (0.6, 0.5, 0.4)), _box((0.7, 0, 0), (1.3, 0.5, 0.4))]
+    xy = np.array([[0.3, 0.2], [0.64, 0.6], [0.66, -0.3], [1.0, 0.9], [2.0, 0.0]])
+    np.testing.assert_array_equal(nearest_piece(xy, boxes), [0, 0, 1, 1, 1])
+    seat = Cuboid([0, 0, 0.4], [0.3, 0.3, 0.02], np.eye(3))
+    assert is_level_slab(seat, UP) and not is_level_slab(seat, np.array([1.0, 0.0, 0.0]))
+    for degrees, level in ((18.0, True), (23.0, False)):
+        c, s = np.cos(np.radians(degrees)), np.sin(np.radians(degrees))
+        turned = np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+        assert is_level_slab(Cuboid([0, 0, 0.4], [0.3, 0.3, 0.02], turned), UP) == level
+    assert not is_level_slab(Cuboid([0, 0, 0.4], [0.3, 0.3, 0.06], np.eye(3)), UP)  # 12 cm thick
+    assert is_level_slab(Cuboid([0, 0, 0.4], [0.3, 0.3, 0.04], np.eye(3)), UP)  # 8 cm
