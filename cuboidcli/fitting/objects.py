@@ -20,8 +20,8 @@ groups, after the fit, without changing the cuboids:
    points' principal axis for a group without one), around its points; a box that comes within
    :data:`FLOOR_TOUCH` voxels of the floor stands on it, and so does a low box or a table top or a seat
    floating at table height (:data:`STAND_TOP_M`): its legs were too thin for the scan. A group whose box
-   holds two or more pieces of one level slab lying apart (two seats under one back) is shared out among
-   them first (:mod:`~cuboidcli.fitting.seats`).
+   holds two or more pieces of one level slab lying apart (two seats under one back), or a back with such
+   pieces beside it, is shared out among them first (:mod:`~cuboidcli.fitting.seats`).
 6. Each object gets a score in [0, 1], how sure the grouping is that the box holds one object
    (:func:`object_score`); detection-style evaluations rank the boxes by it.
 7. Boxes that are the wall's own (:func:`~cuboidcli.fitting.not_objects.on_wall`; thicker ones flat

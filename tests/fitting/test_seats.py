@@ -56,6 +56,106 @@ def test_one_sofa_under_its_back_is_one_object(gap):
     assert abs(lo[0]) <= VOXEL and abs(hi[0] - (1.2 + gap)) <= VOXEL
 
 
+def _chairs_before_one_back(gap, length=None):
+    """Two seats 0.6 m wide, ``gap`` apart, as pieces of one level cuboid (2), and behind them one thin
+    back (cuboid 1, its inliers only the back) ``length`` long (both seats' width by default) that their
+    groups do not reach into: the back's box holds neither seat."""
+    width = 0.6
+    total = 2 * width + gap
+    length = total if length is None else length
+    floor = _grid((-0.5, -0.5, 0), (3.5, 1.5, 0))
+    seats = [_grid((x0, 0.0, 0.42), (x0 + width, 0.5, 0.42)) for x0 in (0.0, width + gap)]
+    legs = [
+        _grid((x, y, 0.05), (x, y, 0.4))
+        for x in (0.02, width - 0.02, width + gap + 0.02, total - 0.02)
+        for y in (0.02, 0.48)
+    ]
+    back = _grid((0.0, 0.55, 0.45), (length, 0.55, 0.9))
+    pts = np.concatenate([floor, *seats, *legs, back])
+    n_seats, n_legs = sum(map(len, seats)), sum(map(len, legs))
+    labels = np.concatenate(
+        [np.zeros(len(floor)), np.full(n_seats, 2), np.full(n_legs, -1), np.full(len(back), 1)]
+    ).astype(np.int32)
+    cuboids = [
+        Cuboid([1.5, 0.5, -0.02], [2.0, 1.0, 0.02], np.eye(3), kind="floor"),
+        Cuboid([length / 2, 0.55, 0.675], [length / 2, 0.01, 0.225], np.eye(3), kind="object"),
+        Cuboid([total / 2, 0.25, 0.42], [total / 2, 0.25, 0.01], np.eye(3), kind="object"),
+    ]
+    return pts, labels, cuboids
+
+
+def test_two_chairs_before_one_back_are_two_objects():
+    """The back's points go to the nearer seat: each chair is its seat, its legs and half of the back."""
+    objects = group_objects(*_chairs_before_one_back(gap=0.2), UP, VOXEL)
+    assert len(objects) == 2
+    left, right = sorted(objects, key=lambda o: o.box.center[0])
+    ends = [left.box.corners().min(0)[0], left.box.corners().max(0)[0], right.box.corners().min(0)[0]]
+    np.testing.assert_allclose([*ends, right.box.corners().max(0)[0]], [0.0, 0.7, 0.7, 1.4], atol=VOXEL)
+    for chair in (left, right):
+        lo, hi = chair.box.corners().min(0), chair.box.corners().max(0)
+        assert chair.cuboids == (1, 2) and abs(lo[1]) <= VOXEL and abs(hi[1] - 0.55) <= VOXEL
+        assert lo[2] == 0.0 and abs(hi[2] - 0.9) <= VOXEL
+
+
+@pytest.mark.parametrize(
+    ("back", "pieces", "expected"),
+    [
+        (
+            ((0, 0.55, 0.4), (1.4, 0.6, 0.9)),
+            {1: ((0, 0, 0), (0.6, 0.5, 0.45)), 2: ((0.8, 0, 0), (1.4, 0.5, 0.45))},
+            [1, 2],
+        ),
+        (
+            ((0, 0.55, 0.4), (1.4, 0.6, 0.9)),
+            {1: ((0, 0, 0), (0.6, 0.4, 0.45)), 2: ((0.8, 0, 0), (1.4, 0.4, 0.45))},
+            [],
+        ),
+        (
+            ((0, 0.55, 0.4), (2.6, 0.6, 0.9)),
+            {1: ((0, 0, 0), (0.6, 0.5, 0.45)), 2: ((0.8, 0, 0), (1.4, 0.5, 0.45))},
+            [],
+        ),
+        (
+            ((0, 0.0, 0.4), (1.4, 0.6, 0.9)),
+            {1: ((0, 0.6, 0), (0.6, 1.1, 0.45)), 2: ((0.8, 0.6, 0), (1.4, 1.1, 0.45))},
+            [],
+        ),
+        (
+            ((0, 0.55, 0.4), (1.4, 0.6, 0.9)),
+            {1: ((0, 0, 0), (0.6, 0.5, 0.45)), 2: ((0.8, 0, 0), (1.6, 0.5, 0.45))},
+            [],
+        ),
+        (
+            ((0, 0.55, 0.5), (1.4, 0.6, 0.9)),
+            {1: ((0, 0, 0), (0.6, 0.5, 0.45)), 2: ((0.8, 0, 0), (1.4, 0.5, 0.45))},
+            [],
+        ),
+        (  # 9 cm away
+            ((0, 0.59, 0.4), (1.4, 0.64, 0.9)),
+            {1: ((0, 0, 0), (0.6, 0.5, 0.45)), 2: ((0.8, 0, 0), (1.4, 0.5, 0.45))},
+            [],
+        ),
+        (  # a back 3.1 times as long as deep, with what grew onto it
+            ((0, 0.5, 0.4), (1.4, 0.95, 0.9)),
+            {1: ((0, 0, 0), (0.6, 0.5, 0.45)), 2: ((0.8, 0, 0), (1.4, 0.5, 0.45))},
+            [1, 2],
+        ),
+        (
+            ((0.55, 0, 0.4), (0.6, 1.4, 0.9)),
+            {1: ((0, 0, 0), (0.5, 0.6, 0.45)), 2: ((0, 0.8, 0), (0.5, 1.4, 0.45))},
+            [1, 2],
+        ),
+    ],
+)
+def test_pieces_beside_a_back(back, pieces, expected):
+    """Seats within 7 cm of a back's long side, also of a back 3.1 times as long as deep; not 9 or 15 cm
+    away, nor beside a 2.6 m run or a deep box, nor sticking out past its end, nor below its bottom; along x
+    or y."""
+    boxes = {0: _box(*back), **{g: _box(*b) for g, b in pieces.items()}}
+    seeds = [4, 5, 5]
+    assert pieces_inside(0, dict.fromkeys(boxes), seeds, {5}, lambda g, h: boxes[g], 0.9) == expected
+
+
 def _box(lo, hi):
     return (list(lo), list(hi), float(np.prod(np.subtract(hi, lo))))
 
