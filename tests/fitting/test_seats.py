@@ -15,25 +15,34 @@ from tests.fitting.test_objects import VOXEL, _grid
 UP = np.array([0.0, 0.0, 1.0])
 
 
-def _armchairs(gap):
-    """Two armchairs 0.6 m wide side by side, ``gap`` apart: one cuboid (1) explains both backs and their
-    arms (its inliers touch: one seed), another (2) both seats, a level slab (two seeds when they lie
-    apart); a floor (0)."""
-    width = 0.6
-    total = 2 * width + gap
+WIDTH = 0.6  # a seat's width (m)
+
+
+def _room(gap, parts, back):
+    """A floor (cuboid 0), the ``back`` cuboid (1), two seats ``WIDTH`` wide and ``gap`` apart as pieces of
+    one level cuboid (2), and ``parts`` [(points, label)]."""
+    total = 2 * WIDTH + gap
     floor = _grid((-0.5, -0.5, 0), (2.5, 1.5, 0))
-    seats = [_grid((x0, 0.0, 0.42), (x0 + width, 0.55, 0.42)) for x0 in (0.0, width + gap)]
-    back = _grid((0.0, 0.6, 0.45), (total, 0.6, 0.9))
-    arms = [_grid((x, 0.0, 0.1), (x, 0.58, 0.65)) for x in (0.0, width + 0.03, width + gap - 0.03, total)]
-    pts = np.concatenate([floor, *seats, back, *arms])
-    n_seats, n_back = sum(map(len, seats)), len(back) + sum(map(len, arms))
-    labels = np.concatenate([np.zeros(len(floor)), np.full(n_seats, 2), np.full(n_back, 1)]).astype(np.int32)
+    seats = [_grid((x0, 0.0, 0.42), (x0 + WIDTH, 0.5, 0.42)) for x0 in (0.0, WIDTH + gap)]
+    parts = [(floor, 0), *((seat, 2) for seat in seats), *parts]
+    pts = np.concatenate([p for p, _ in parts])
+    labels = np.concatenate([np.full(len(p), label) for p, label in parts]).astype(np.int32)
     cuboids = [
         Cuboid([1.0, 0.5, -0.02], [1.5, 1.0, 0.02], np.eye(3), kind="floor"),
-        Cuboid([total / 2, 0.31, 0.5], [total / 2, 0.31, 0.4], np.eye(3), kind="object"),
-        Cuboid([total / 2, 0.275, 0.42], [total / 2, 0.275, 0.01], np.eye(3), kind="object"),
+        back,
+        Cuboid([total / 2, 0.25, 0.42], [total / 2, 0.25, 0.01], np.eye(3), kind="object"),
     ]
     return pts, labels, cuboids
+
+
+def _armchairs(gap):
+    """Two armchairs side by side, ``gap`` apart: one cuboid (1) explains both backs and their arms (its
+    inliers touch: one seed), and holds both seats (two seeds when they lie apart)."""
+    total = 2 * WIDTH + gap
+    back = _grid((0.0, 0.6, 0.45), (total, 0.6, 0.9))
+    arms = [_grid((x, 0.0, 0.1), (x, 0.58, 0.65)) for x in (0.0, WIDTH + 0.03, WIDTH + gap - 0.03, total)]
+    cuboid = Cuboid([total / 2, 0.31, 0.5], [total / 2, 0.31, 0.4], np.eye(3), kind="object")
+    return _room(gap, [(back, 1), *((arm, 1) for arm in arms)], cuboid)
 
 
 def test_two_armchairs_under_one_back_are_two_objects():
@@ -56,32 +65,15 @@ def test_one_sofa_under_its_back_is_one_object(gap):
     assert abs(lo[0]) <= VOXEL and abs(hi[0] - (1.2 + gap)) <= VOXEL
 
 
-def _chairs_before_one_back(gap, length=None):
-    """Two seats 0.6 m wide, ``gap`` apart, as pieces of one level cuboid (2), and behind them one thin
-    back (cuboid 1, its inliers only the back) ``length`` long (both seats' width by default) that their
-    groups do not reach into: the back's box holds neither seat."""
-    width = 0.6
-    total = 2 * width + gap
-    length = total if length is None else length
-    floor = _grid((-0.5, -0.5, 0), (3.5, 1.5, 0))
-    seats = [_grid((x0, 0.0, 0.42), (x0 + width, 0.5, 0.42)) for x0 in (0.0, width + gap)]
-    legs = [
-        _grid((x, y, 0.05), (x, y, 0.4))
-        for x in (0.02, width - 0.02, width + gap + 0.02, total - 0.02)
-        for y in (0.02, 0.48)
-    ]
-    back = _grid((0.0, 0.55, 0.45), (length, 0.55, 0.9))
-    pts = np.concatenate([floor, *seats, *legs, back])
-    n_seats, n_legs = sum(map(len, seats)), sum(map(len, legs))
-    labels = np.concatenate(
-        [np.zeros(len(floor)), np.full(n_seats, 2), np.full(n_legs, -1), np.full(len(back), 1)]
-    ).astype(np.int32)
-    cuboids = [
-        Cuboid([1.5, 0.5, -0.02], [2.0, 1.0, 0.02], np.eye(3), kind="floor"),
-        Cuboid([length / 2, 0.55, 0.675], [length / 2, 0.01, 0.225], np.eye(3), kind="object"),
-        Cuboid([total / 2, 0.25, 0.42], [total / 2, 0.25, 0.01], np.eye(3), kind="object"),
-    ]
-    return pts, labels, cuboids
+def _chairs_before_one_back(gap):
+    """Two chairs side by side, ``gap`` apart, on legs no cuboid explains; behind their seats one thin back
+    (cuboid 1, its inliers only the back) whose box holds neither seat."""
+    total = 2 * WIDTH + gap
+    feet = (0.02, WIDTH - 0.02, WIDTH + gap + 0.02, total - 0.02)
+    legs = [_grid((x, y, 0.05), (x, y, 0.4)) for x in feet for y in (0.02, 0.48)]
+    back = _grid((0.0, 0.55, 0.45), (total, 0.55, 0.9))
+    cuboid = Cuboid([total / 2, 0.55, 0.675], [total / 2, 0.01, 0.225], np.eye(3), kind="object")
+    return _room(gap, [*((leg, -1) for leg in legs), (back, 1)], cuboid)
 
 
 def test_two_chairs_before_one_back_are_two_objects():
