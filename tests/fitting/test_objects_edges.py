@@ -11,7 +11,14 @@ import pytest
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting import objects
-from cuboidcli.fitting.not_objects import is_bent_floor, is_floor_patch, near_wall, on_wall, wall_coloured
+from cuboidcli.fitting.not_objects import (
+    floor_to_ceiling,
+    is_bent_floor,
+    is_floor_patch,
+    near_wall,
+    on_wall,
+    wall_coloured,
+)
 from cuboidcli.fitting.objects import SceneObject, floor_heights, group_objects, object_score
 
 VOXEL = 0.035
@@ -716,3 +723,54 @@ def test_two_groups_inside_a_larger_ones_box_both_join_it():
     pts, lab = _on_floor(frame, low, high)
     out = group_objects(pts, lab, [FLOOR], UP, VOXEL)
     assert [o.points for o in out] == [len(frame) + len(low) + len(high)]
+
+
+# --- boxes from the floor to the ceiling -------------------------------------------------------------------
+
+
+def _column_room(top, ceiling_z):
+    """A column 0.3 m square of unlabelled points from the floor to ``top`` (its sides, every voxel), and a
+    ceiling cuboid whose underside is at ``ceiling_z`` (none when None)."""
+    sides = [_grid((1.0, 1.0, 0.05), (1.3, 1.0, top)), _grid((1.0, 1.3, 0.05), (1.3, 1.3, top))]
+    sides += [_grid((1.0, 1.0, 0.05), (1.0, 1.3, top)), _grid((1.3, 1.0, 0.05), (1.3, 1.3, top))]
+    pts, lab = _on_floor(*sides)
+    cuboids = [FLOOR]
+    if ceiling_z is not None:
+        cuboids.append(Cuboid([1.5, 1.5, ceiling_z + 0.02], [1.5, 1.5, 0.02], np.eye(3), kind="ceiling"))
+    return pts, lab, cuboids
+
+
+@pytest.mark.parametrize(
+    ("top", "ceiling_z", "kept"),
+    [
+        (2.55, 2.6, False),  # a column: 98 % of the room's height
+        (2.33, 2.6, False),  # the box is grown by half a voxel: 2.3475 m, 90.3 % of 2.6 m
+        (2.31, 2.6, True),  # 2.3275 m, 89.5 %: a wardrobe
+        (2.55, None, True),  # no ceiling
+        (1.45, 1.5, True),  # a "ceiling" 1.5 m up is the top of what a sequence's views saw
+        (2.55, 1.99 + 0.6, False),
+    ],
+)
+def test_a_box_from_the_floor_to_the_ceiling_is_structure(top, ceiling_z, kept):
+    pts, lab, cuboids = _column_room(top, ceiling_z)
+    objects = group_objects(pts, lab, cuboids, UP, VOXEL)
+    assert len(objects) == int(kept)
+
+
+def test_floor_to_ceiling_bounds():
+    ceiling = Cuboid([0, 0, 2.52], [2, 2, 0.02], np.eye(3), kind="ceiling")  # underside at 2.5
+    low = Cuboid([0, 0, 2.06], [2, 2, 0.01], np.eye(3), kind="ceiling")  # underside at 2.05
+    assert floor_to_ceiling(0.9 * 2.5, 0.0, [FLOOR, ceiling], UP)
+    assert not floor_to_ceiling(0.9 * 2.5 - 1e-6, 0.0, [FLOOR, ceiling], UP)
+    assert floor_to_ceiling(1.85, 0.0, [ceiling, low], UP)  # the lowest ceiling counts
+    assert not floor_to_ceiling(1.9, 0.06, [low], UP)  # 1.99 m up: no room's ceiling
+    seen_top = Cuboid([0, 0, 1.52], [2, 2, 0.02], np.eye(3), kind="ceiling")  # a sequence's top of view
+    assert not floor_to_ceiling(1.45, 0.0, [ceiling, seen_top], UP)
+    assert floor_to_ceiling(2.0, 0.3, [ceiling], UP) and not floor_to_ceiling(2.0, 0.2, [ceiling], UP)
+    assert not floor_to_ceiling(3.0, 0.0, [FLOOR], UP)
+    turned = Cuboid([0, 0, 2.6], [0.02, 2, 2], np.array([[0.0, 0, 1], [0, 1, 0], [-1, 0, 0]]), kind="ceiling")
+    assert floor_to_ceiling(0.9 * 2.58, 0.0, [turned], UP)  # its thin axis turned to up: underside 2.58
+    tilted = Cuboid([0, 0, 3.6], [2, 2, 0.02], _about_x(math.radians(30)), kind="ceiling")
+    underside = 3.6 - (0.5 * 2 + math.cos(math.radians(30)) * 0.02)  # its lowest corner
+    assert floor_to_ceiling(0.9 * underside + 1e-9, 0.0, [tilted], UP)
+    assert not floor_to_ceiling(0.9 * underside - 1e-6, 0.0, [tilted], UP)
