@@ -26,7 +26,8 @@ groups, after the fit, without changing the cuboids:
    (:func:`object_score`); detection-style evaluations rank the boxes by it.
 7. Boxes that are the wall's own (:func:`~cuboidcli.fitting.not_objects.on_wall`; thicker ones flat
    against a wall when they have its colour, :func:`~cuboidcli.fitting.not_objects.wall_coloured`),
-   low-scored boxes high above the floor (:data:`HIGH_M`, :data:`HIGH_SCORE`) and flat patches of floor
+   boxes high in the room (:func:`~cuboidcli.fitting.not_objects.high_up`: low-scored ones, and ones
+   no cuboid seeded above a door's top) and flat patches of floor
    that the floor's cuboids missed (:func:`~cuboidcli.fitting.not_objects.is_floor_patch`) are left out, and
    so are boxes from the floor to the ceiling (:func:`~cuboidcli.fitting.not_objects.floor_to_ceiling`).
 8. A sink set into an object's top gets a box of its own (:func:`~cuboidcli.fitting.basins.find_basins`).
@@ -47,6 +48,7 @@ from cuboidcli.fitting.basins import object_basins
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.fitting.not_objects import (
     floor_to_ceiling,
+    high_up,
     is_bent_floor,
     is_floor_patch,
     on_wall,
@@ -75,13 +77,6 @@ MERGE_OVERLAP = 0.9
 #: A point's floor is the highest floor cuboid whose footprint comes this close to it (m), else the nearest
 #: (the lowest instead lost one of 31 synthetic objects on the bare clouds).
 FLOOR_REACH_M = 0.3
-#: A box whose bottom is more than :data:`HIGH_M` (m) above its floor and whose score is below
-#: :data:`HIGH_SCORE` is left out: on the 10 real ScanNet scans (2 seeds) 33 % of the boxes more than 1 m up
-#: lay on one labelled object (the rest on unannotated points, walls, other structure), and with the score
-#: bound no labelled box lost its match; a bound of 0.2 lost 4 of the 90 synthetic objects of seeds 1000
-#: and 3000 with cameras and bare (the high wall cupboards score from 0.150 up; docs/scenes.md).
-HIGH_M = 1.0
-HIGH_SCORE = 0.1
 #: A box whose lowest point is within this many voxels of the floor is extended down to it.
 FLOOR_TOUCH = 3.0
 #: Furniture stands on the floor, but a scan often misses what holds it up (thin legs, a chair's underside in
@@ -382,7 +377,7 @@ def group_objects(
         box = Cuboid(center, (hi - lo) / 2, rotation, kind="object")
         floor_z = float(np.median(under_q[members]))
         score = object_score(q[members] @ _yaw_matrix(headings[g]), lo, hi, voxel_m, lo[2] <= floor_z)
-        high = lo[2] - floor_z > HIGH_M and score < HIGH_SCORE
+        high = high_up(float(lo[2] - floor_z), score, bool(parts))
         heights = q[members, 2] - under_q[members]
         flat = is_floor_patch(heights, float(hi[2] - floor_z)) or is_bent_floor(q[members], heights)
         wall_piece = on_wall(box, walls) or wall_coloured(box, colors, idx[members], walls, wall_colour)

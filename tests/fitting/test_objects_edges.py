@@ -47,6 +47,8 @@ def _extent(box: Cuboid):
 
 
 FLOOR = Cuboid([1.5, 1.5, -0.02], [1.5, 1.5, 0.02], np.eye(3), kind="floor")  # top face at z = 0
+#: A wall whose face is at x = 0.85, 10 cm from what stands at x = 1 (a box high up near it is not hanging).
+WALL_NEAR = Cuboid([0.8, 1.5, 1.3], [0.05, 1.5, 1.3], np.eye(3), kind="wall")
 
 
 def _on_floor(*parts, labels=None):
@@ -435,10 +437,11 @@ def test_a_sparse_patch_just_over_a_metre_up_is_left_out(height, kept):
 
 
 def test_a_well_filled_box_high_up_stays():
-    """The high-box rule needs a low score too: a full cube of 512 points 1.5 m up scores over 0.1."""
+    """The high-box rule needs a low score too: a full cube of 512 points 1.5 m up, 10 cm from a wall (so
+    that it does not hang clear of the walls), scores over 0.1."""
     cube = _box_pts(1.0, 1.0, 1.5, 7 * VOXEL, 7 * VOXEL, 7 * VOXEL)
     pts, lab = _on_floor(cube)
-    (o,) = group_objects(pts, lab, [FLOOR], UP, VOXEL)
+    (o,) = group_objects(pts, lab, [FLOOR, WALL_NEAR], UP, VOXEL)
     assert o.score > 0.1 and o.points == 512
 
 
@@ -597,6 +600,19 @@ def test_bent_floor_bounds():
     assert not is_bent_floor(level, heights)
 
 
+@pytest.mark.parametrize(("rough", "bent"), [(0.0345, True), (0.0355, False)])
+def test_a_bent_floor_may_be_as_rough_as_a_voxel(rough, bent):
+    """A stretch of floor rising 8 degrees, its points in two layers ``rough`` above and below its plane (a
+    checkerboard, so the fitted plane is the middle one and every point is ``rough`` off it): a sequence's
+    fused floor is that rough up to 3.5 cm."""
+    level, _ = _slope(8.0, n_side=8, z0=0.1)
+    t = math.radians(8.0)
+    normal = np.array([-math.sin(t), 0.0, math.cos(t)])
+    sign = np.where(np.indices((8, 8)).sum(0).ravel() % 2 == 0, 1.0, -1.0)
+    level = level + rough * sign[:, None] * normal
+    assert is_bent_floor(level, level[:, 2]) is bent
+
+
 # --- exact boundaries, with a voxel of a quarter metre (all the sums below are exact in binary) -----------
 
 QUARTER = 0.25
@@ -649,11 +665,11 @@ def test_a_sparse_box_exactly_a_metre_up_stays():
 
 def test_a_high_box_scoring_between_0_1_and_0_15_stays():
     """A full block of 5 x 5 x 3 points 1.5 m up: every 2-voxel cell of its views is occupied (fill 1), so
-    its score is 0.7 x (1 - exp(-75 / 400)) = 0.120, over the bound of 0.1."""
+    its score is 0.7 x (1 - exp(-75 / 400)) = 0.120, over the bound of 0.1. A wall 10 cm away holds it."""
     block = _box_pts(1.0, 1.0, 1.5, 4 * VOXEL, 4 * VOXEL, 2 * VOXEL)
     assert len(block) == 75
     pts, lab = _on_floor(block)
-    (o,) = group_objects(pts, lab, [FLOOR], UP, VOXEL)
+    (o,) = group_objects(pts, lab, [FLOOR, WALL_NEAR], UP, VOXEL)
     assert o.score == pytest.approx(0.7 * (1.0 - math.exp(-75 / 400)), rel=1e-9)
 
 
