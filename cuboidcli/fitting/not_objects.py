@@ -115,19 +115,23 @@ def is_bent_floor(level: np.ndarray, heights: np.ndarray) -> bool:
     return flat and BENT_FLOOR_TILT_DEG[0] <= tilt <= BENT_FLOOR_TILT_DEG[1]
 
 
-def on_wall(box: Cuboid, walls: list[Cuboid]) -> bool:
+def on_wall(box: Cuboid, walls: list[Cuboid], up: np.ndarray) -> bool:
     """Whether ``box`` is part of a wall rather than something in the room: at most :data:`WALL_THIN_M`
     thick along a wall's normal, within :data:`WALL_GAP_M` of that wall and with its centre over the wall's
-    rectangle (grown by :data:`WALL_GAP_M` + :data:`WALL_THIN_M`). On real scans such boxes are the wall's
-    own scraps (sockets, trims, the part of a wall the fit left to no cuboid)."""
+    width (grown by :data:`WALL_GAP_M` + :data:`WALL_THIN_M`) at any height: a wall's cuboid ends where
+    the fit's support for it ended (behind furniture, under a ceiling the scan cut short), the wall goes on
+    from the floor to the ceiling (``up`` (3,) the room's up). On real scans such boxes are the wall's own
+    scraps (sockets, trims, the part of a wall the fit left to no cuboid)."""
     for w in walls:
         k = int(np.argmin(w.half_size))
         n = w.rotation[:, k]
         local = (box.center - w.center) @ w.rotation
         thick = float(np.sum(np.abs(box.rotation.T @ n) * box.half_size))  # half the box's extent along n
         gap = abs(local[k]) - w.half_size[k] - 2.0 * thick
-        lateral = np.delete(np.abs(local) - w.half_size, k)
-        if 2.0 * thick <= WALL_THIN_M and gap <= WALL_GAP_M and np.all(lateral <= WALL_GAP_M + WALL_THIN_M):
+        across = [a for a in range(3) if a != k]
+        along = min(across, key=lambda a: abs(float(w.rotation[:, a] @ up)))  # the wall's horizontal axis
+        lateral = abs(local[along]) - w.half_size[along]
+        if 2.0 * thick <= WALL_THIN_M and gap <= WALL_GAP_M and lateral <= WALL_GAP_M + WALL_THIN_M:
             return True
     return False
 

@@ -380,7 +380,7 @@ def group_objects(
         high = high_up(float(lo[2] - floor_z), score, bool(parts))
         heights = q[members, 2] - under_q[members]
         flat = is_floor_patch(heights, float(hi[2] - floor_z)) or is_bent_floor(q[members], heights)
-        wall_piece = on_wall(box, walls) or wall_coloured(box, colors, idx[members], walls, wall_colour)
+        wall_piece = on_wall(box, walls, z) or wall_coloured(box, colors, idx[members], walls, wall_colour)
         if flat or high or wall_piece or floor_to_ceiling(float(hi[2] - lo[2]), floor_z, cuboids, z):
             continue
         if lo[2] > floor_z and _stands_on_legs(group[members], seeds, ceiling, lo, hi, floor_z):

@@ -10,6 +10,8 @@ from cuboidcli.fitting.not_objects import on_wall
 from cuboidcli.fitting.objects import floor_heights, group_objects
 from cuboidcli.geometry.gravity import level_frame
 
+UP = np.array([0.0, 0.0, 1.0])
+
 VOXEL = 0.035
 
 
@@ -146,10 +148,12 @@ def test_a_thin_box_against_a_wall_is_the_walls():
     cabinet = Cuboid([1.0, 3.68, 0.4], [0.5, 0.3, 0.4], np.eye(3), kind="object")
     away = Cuboid([1.0, 2.0, 0.3], [0.1, 0.04, 0.05], np.eye(3), kind="object")
     beyond_its_end = Cuboid([5.0, 3.94, 0.3], [0.1, 0.04, 0.05], np.eye(3), kind="object")
-    assert on_wall(socket, [wall])
-    assert not on_wall(cabinet, [wall])
-    assert not on_wall(away, [wall])
-    assert not on_wall(beyond_its_end, [wall])
+    assert on_wall(socket, [wall], UP)
+    assert not on_wall(cabinet, [wall], UP)
+    assert not on_wall(away, [wall], UP)
+    assert not on_wall(beyond_its_end, [wall], UP)
+    # above the wall's cuboid (the fit's wall stopped at 2.5 m, the real one goes on): the wall's still
+    assert on_wall(Cuboid([1.0, 3.94, 3.4], [0.1, 0.04, 0.05], np.eye(3), kind="object"), [wall], UP)
 
 
 def test_each_point_stands_on_the_floor_under_it():

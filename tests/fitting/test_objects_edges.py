@@ -477,8 +477,8 @@ def _piece(y=3.9, half=(0.1, 0.075, 0.05), x=1.0, rot=None):
 
 def test_on_wall_thickness_just_inside_and_outside():
     """gap = |centre - wall centre| - wall half - the box's full thickness; 2 x 7.5 cm = 15 cm is thin."""
-    assert on_wall(_piece(), [WALL]) and near_wall(_piece(), [WALL], 0.15) == [0]
-    assert not on_wall(_piece(half=(0.1, 0.076, 0.05)), [WALL])
+    assert on_wall(_piece(), [WALL], UP) and near_wall(_piece(), [WALL], 0.15) == [0]
+    assert not on_wall(_piece(half=(0.1, 0.076, 0.05)), [WALL], UP)
     assert near_wall(_piece(half=(0.1, 0.076, 0.05)), [WALL], 0.15) == []
     assert near_wall(_piece(half=(0.1, 0.2, 0.05), y=3.75), [WALL], 0.4) == [0]
     assert near_wall(_piece(half=(0.1, 0.21, 0.05), y=3.75), [WALL], 0.4) == []
@@ -487,19 +487,34 @@ def test_on_wall_thickness_just_inside_and_outside():
 @pytest.mark.parametrize(("y", "inside"), [(3.785, True), (3.775, False)])
 def test_on_wall_gap_just_inside_and_outside(y, inside):
     """Centre 0.215 m from the wall's centre: gap 0.215 - 0.02 - 0.15 = 4.5 cm; 0.225 m: 5.5 cm."""
-    assert on_wall(_piece(y=y), [WALL]) is inside
+    assert on_wall(_piece(y=y), [WALL], UP) is inside
     assert (near_wall(_piece(y=y), [WALL], 0.15) == [0]) is inside
 
 
 @pytest.mark.parametrize(
-    ("x", "z", "inside"),
-    [(4.19, 0.3, True), (4.21, 0.3, False), (-0.21, 0.3, False), (1.0, 2.69, True), (1.0, 2.71, False),
-     (4.21, 2.71, False)],
+    ("x", "z", "on", "near"),
+    [(4.19, 0.3, True, True), (4.21, 0.3, False, False), (-0.21, 0.3, False, False),
+     (1.0, 2.69, True, True), (1.0, 2.71, True, False), (1.0, 4.0, True, False), (1.0, -1.0, True, False),
+     (4.21, 2.71, False, False)],
 )  # fmt: skip
-def test_on_wall_only_over_its_rectangle_grown_by_20_cm(x, z, inside):
+def test_on_wall_only_over_its_width_grown_by_20_cm(x, z, on, near):
+    """The wall is 4 m wide (x 0-4) and 2.5 m tall (z 0-2.5): a thin box flat on it within 20 cm of its
+    width is the wall's at any height (the fit's wall stops where its support stopped); a box flat against
+    it with its colour (:func:`near_wall`) must lie over its rectangle."""
     box = Cuboid([x, 3.9, z], [0.1, 0.075, 0.05], np.eye(3))
-    assert on_wall(box, [WALL]) is inside
-    assert (near_wall(box, [WALL], 0.15) == [0]) is inside
+    assert on_wall(box, [WALL], UP) is on
+    assert (near_wall(box, [WALL], 0.15) == [0]) is near
+
+
+def test_on_wall_finds_the_walls_width_whatever_the_order_of_its_axes():
+    """The same wall as :data:`WALL` with its axes listed height first (local x along up): its width is
+    still along world x."""
+    axes = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])  # columns: up, x, y
+    wall = Cuboid(WALL.center, [1.25, 2.0, 0.02], axes, kind="wall")
+    assert on_wall(_piece(), [wall], UP) and on_wall(
+        Cuboid([1.0, 3.9, 4.0], [0.1, 0.075, 0.05], np.eye(3)), [wall], UP
+    )
+    assert not on_wall(_piece(x=4.21), [wall], UP) and on_wall(_piece(x=4.19), [wall], UP)
 
 
 def test_on_wall_of_a_turned_box_and_a_turned_wall():
@@ -507,21 +522,21 @@ def test_on_wall_of_a_turned_box_and_a_turned_wall():
     (18.7 cm: not thin); the same wall and box turned 90 degrees about up together are still the wall's
     when the box is thin."""
     turned = _piece(half=(0.1, 0.05, 0.05), y=3.88, rot=_yaw(math.radians(30)))
-    assert not on_wall(turned, [WALL]) and near_wall(turned, [WALL], 0.15) == []
+    assert not on_wall(turned, [WALL], UP) and near_wall(turned, [WALL], 0.15) == []
     assert near_wall(turned, [WALL], 0.19) == [0]
     R = _yaw(math.pi / 2)
     wall = Cuboid(R @ WALL.center, WALL.half_size, R, kind="wall")
     box = _piece()
     moved = Cuboid(R @ box.center, box.half_size, R, kind="object")
-    assert on_wall(moved, [wall]) and near_wall(moved, [wall], 0.15) == [0]
-    assert not on_wall(Cuboid(R @ [1.0, 3.7, 0.3], box.half_size, R), [wall])
+    assert on_wall(moved, [wall], UP) and near_wall(moved, [wall], 0.15) == [0]
+    assert not on_wall(Cuboid(R @ [1.0, 3.7, 0.3], box.half_size, R), [wall], UP)
 
 
 def test_near_wall_lists_each_wall_it_touches():
     corner = Cuboid([0.0, 2.0, 1.25], [0.02, 2.0, 1.25], np.eye(3), kind="wall")  # x = 0, face at 0.02
     box = Cuboid([0.12, 3.9, 0.3], [0.075, 0.075, 0.05], np.eye(3))
     assert near_wall(box, [WALL, corner], 0.15) == [0, 1]
-    assert on_wall(box, [corner]) and not on_wall(box, [])
+    assert on_wall(box, [corner], UP) and not on_wall(box, [], UP)
 
 
 def _coloured(own, wall_colour, walls=None, box=None):
