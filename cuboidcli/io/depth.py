@@ -172,7 +172,8 @@ def read_rgb(path: str | os.PathLike) -> np.ndarray:
             img = (img / 257).astype(np.uint8)
         else:
             raise InputError(
-                f"{path} is not an 8-bit colour image (dtype {img.dtype}); did you pass the depth map?"
+                f"{path} is not an 8-bit colour image (dtype {img.dtype}); the depth map goes after --depth, "
+                "the colour image before it"
             )
     if img.shape[2] == 4:
         img = img[..., :3]

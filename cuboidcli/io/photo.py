@@ -204,7 +204,7 @@ def _to_rgb(im, path: Path):
     if im.mode in ("I", "F") or im.mode.startswith("I;"):
         raise InputError(
             f"{path} is a single-channel {im.mode} image, not an 8-bit colour photo; "
-            "did you pass the depth map?"
+            f"if it is a depth map, pass it with --depth: cuboids fit --depth {path}"
         )
     return im if im.mode == "RGB" else im.convert("RGB")
 

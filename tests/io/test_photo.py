@@ -187,7 +187,8 @@ def test_image_modes(tmp_path):
         (
             "depth.png",
             "depth",
-            r"^\S*depth.png is a single-channel I;16 image, not an 8-bit colour photo; did you pass",
+            r"^\S*depth.png is a single-channel I;16 image, not an 8-bit colour photo; if it is a depth map, "
+            r"pass it with --depth: cuboids fit --depth \S*depth.png$",
         ),
         ("missing.jpg", None, "^image file not found: .*missing.jpg$"),
     ],
