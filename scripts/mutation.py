@@ -213,7 +213,11 @@ TARGETS = (
             name,
             f"cuboidcli/fitting/{name}.py",
             None,
-            ("tests/fitting/test_objects.py", "tests/fitting/test_objects_edges.py"),
+            (
+                "tests/fitting/test_objects.py",
+                "tests/fitting/test_objects_edges.py",
+                "tests/fitting/test_high_up.py",
+            ),
         )
         for name in ("objects", "not_objects")
     ),

@@ -567,6 +567,15 @@ def test_wall_colour_of_a_box_on_no_wall_or_on_one_of_two():
     assert _coloured([10.0, 10.0, 10.0], both, walls=[WALL, corner], box=box)  # matches the second
 
 
+def test_wall_colour_takes_boxes_up_to_40_cm_thick():
+    """Flat against the wall (gap 0) and 2 x 0.2 / 2 x 0.21 m thick: the colour rule's bound is 40 cm."""
+    wall = np.array([100.0, 100.0, 100.0])
+    thick = _piece(half=(0.1, 0.2, 0.05), y=3.78)  # its back face at 3.98, the wall's face
+    thicker = _piece(half=(0.1, 0.21, 0.05), y=3.77)
+    assert _coloured([100.0, 100.0, 100.0], {0: wall}, box=thick)
+    assert not _coloured([100.0, 100.0, 100.0], {0: wall}, box=thicker)
+
+
 def test_wall_colour_is_the_median_of_the_boxs_points():
     colors = np.array([[100.0, 100.0, 100.0], [100.0, 100.0, 100.0], [255.0, 0.0, 0.0]])
     assert wall_coloured(_piece(), colors, np.array([0, 1, 2]), [WALL], {0: np.array([100.0, 100.0, 100.0])})
