@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -77,12 +76,12 @@ def main() -> None:
     args = ap.parse_args()
     names = args.scans or scan_names(args.folder)
     if not names:
-        sys.exit(f"no scans in {args.folder} (NAME_bbox.npy with NAME.ply or NAME_vert.npy)")
+        ap.error(f"no scans in {args.folder} (NAME_bbox.npy with NAME.ply or NAME_vert.npy)")
     missing = sorted(set(names) - set(scan_names(args.folder)))
     if missing:
-        sys.exit(f"not scans of {args.folder}: {', '.join(missing)}")
+        ap.error(f"not scans of {args.folder}: {', '.join(missing)}")
     if args.views < 1:
-        sys.exit("--views must be at least 1")
+        ap.error("--views must be at least 1")
 
     import cuboidcli
 
@@ -112,7 +111,9 @@ def main() -> None:
     ))  # fmt: skip
     if args.json:
         doc = {"version": cuboidcli.__version__, "folder": str(args.folder), "seed": args.seed}
-        doc.update(views=args.views, size=list(args.size), scans=rows, pooled=pooled)
+        doc.update(views=args.views, size=list(args.size))
+        doc["settings"] = {"fit": fitter.config.for_kind("room").to_dict()}  # as `cuboids evaluate` does
+        doc.update(scans=rows, pooled=pooled)
         args.json.write_text(json.dumps(json_safe(doc), indent=1))
         print(f"wrote {args.json}")
 
