@@ -24,7 +24,11 @@ Points are grouped into blocks (a coarse voxel, and within it one viewpoint clus
 by block. A hypothesis visits a block only when the block's points lie within the cuboid's near zone
 (its bounding box grown by the inlier cut-off) or, for ``views``, when the hull of the block's points and
 their cameras meets the cuboid's bounding box (a line of sight through the cuboid): every other point adds
-exactly 0. Pruning against a threshold uses the per-block bound of what its points can still add.
+exactly 0. Both tests are made along the world's axes and along the cuboid's. Pruning against a threshold
+uses the per-block bound of what its points can still add; a block deeper inside the cuboid than the inlier
+margin, or reached by lines of sight alone, can only lose, and the blocks deep inside are scored first: most
+hypotheses abandoned are boxes across much of the room, which hide what was seen inside them (the full
+passes of a fit of a cluttered real scan took 5.1 s instead of 6.6 s, with the same gains).
 """
 
 from __future__ import annotations
@@ -123,6 +127,21 @@ def _meets(lo, hi, b, c0, c1, c2, e0, e1, e2):
 
 
 @njit(cache=True, inline="always")
+def _block_local(lo, hi, b, t0, t1, t2, R):
+    """The box [lo[b], hi[b]] in a cuboid's frame (centre t, axes R): its centre's offset along each of
+    the cuboid's axes, and its half-extent along each."""
+    h0, h1, h2 = 0.5 * (hi[b, 0] - lo[b, 0]), 0.5 * (hi[b, 1] - lo[b, 1]), 0.5 * (hi[b, 2] - lo[b, 2])
+    m0, m1, m2 = 0.5 * (lo[b, 0] + hi[b, 0]), 0.5 * (lo[b, 1] + hi[b, 1]), 0.5 * (lo[b, 2] + hi[b, 2])
+    l0, l1, l2 = to_local(m0 - t0, m1 - t1, m2 - t2, R)
+    return (
+        abs(l0), abs(l1), abs(l2),
+        abs(R[0, 0]) * h0 + abs(R[1, 0]) * h1 + abs(R[2, 0]) * h2,
+        abs(R[0, 1]) * h0 + abs(R[1, 1]) * h1 + abs(R[2, 1]) * h2,
+        abs(R[0, 2]) * h0 + abs(R[1, 2]) * h1 + abs(R[2, 2]) * h2,
+    )  # fmt: skip
+
+
+@njit(cache=True, inline="always")
 def _point_value(points, views, i, t0, t1, t2, R, a0, a1, a2, params, mode):
     beta, inv_tau, tau_c, slope, offset, cutoff = params
     l0, l1, l2 = to_local(points[i, 0] - t0, points[i, 1] - t1, points[i, 2] - t2, R)
@@ -153,33 +172,53 @@ def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, voxel, voxe
                 mode == 0 and _meets(voxel_hull_lo, voxel_hull_hi, g, t0, t1, t2, e0, e1, e2)
             )
         visit = np.empty(n_blocks, dtype=np.int64)
-        n_visit = 0
+        lose = np.empty(n_blocks, dtype=np.int64)
+        n_visit = n_lose = 0
         remaining = 0.0
         for k in range(n_blocks):
             b = order[k]
             if not reach[voxel[b]]:
                 continue
+            # the same tests along the cuboid's own axes: a cuboid turned in the world has a world-aligned
+            # box that takes in many blocks it does not reach (a wall at 45 degrees to the scan's axes)
             if _meets(lo, hi, b, t0, t1, t2, e0 + margin, e1 + margin, e2 + margin):
-                visit[n_visit] = b
-                n_visit += 1
-                remaining += bound[b]
-            elif mode == 0 and _meets(hull_lo, hull_hi, b, t0, t1, t2, e0, e1, e2):
-                # a block beyond the inlier margin can only lose (points the box hides from their
-                # viewpoints): it is visited for the exact gain but adds nothing to what may still be gained
-                visit[n_visit] = -1 - b
-                n_visit += 1
+                d0, d1, d2, x0, x1, x2 = _block_local(lo, hi, b, t0, t1, t2, R)
+                if d0 <= a0 + margin + x0 and d1 <= a1 + margin + x1 and d2 <= a2 + margin + x2:
+                    if d0 + x0 < a0 - margin and d1 + x1 < a1 - margin and d2 + x2 < a2 - margin:
+                        # every point deeper inside than the inlier margin: none is an inlier, so the
+                        # block can only lose, like one reached by lines of sight alone
+                        lose[n_lose] = b
+                        n_lose += 1
+                    else:
+                        visit[n_visit] = b
+                        n_visit += 1
+                        remaining += bound[b]
+                    continue
+            if mode == 0 and _meets(hull_lo, hull_hi, b, t0, t1, t2, e0, e1, e2):
+                d0, d1, d2, x0, x1, x2 = _block_local(hull_lo, hull_hi, b, t0, t1, t2, R)
+                if d0 <= a0 + x0 and d1 <= a1 + x1 and d2 <= a2 + x2:
+                    # a block beyond the inlier margin can only lose (points the box hides from their
+                    # viewpoints): it is visited for the exact gain but adds nothing to what may still be
+                    # gained
+                    visit[n_visit] = -1 - b
+                    n_visit += 1
         acc = 0.0
         pruned = False
-        for j in range(n_visit):
+        # the blocks that can only lose first: a box that hides much of what was seen (one across the
+        # room) falls below the threshold before its many blocks that might gain are scored
+        for j in range(n_lose + n_visit):
             # slack for rounding: never prune a hypothesis that reaches the threshold
             if acc + remaining + 1e-7 < threshold:
                 pruned = True
                 break
-            b = visit[j]
-            if b < 0:
-                b = -1 - b
+            if j < n_lose:
+                b = lose[j]
             else:
-                remaining -= bound[b]
+                b = visit[j - n_lose]
+                if b < 0:
+                    b = -1 - b
+                else:
+                    remaining -= bound[b]
             for i in range(start[b], start[b + 1]):
                 v = _point_value(points, views, i, t0, t1, t2, R, a0, a1, a2, params, mode)
                 o = old[i]

@@ -317,6 +317,38 @@ def test_pruning_counts_only_the_blocks_a_hypothesis_visits():
     assert _gains(room, state, CENTER[None], half[None], R[None]) == pytest.approx([10 * f_i(0.01)])
 
 
+def _inside_and_near_the_face(n_face: int, n_deep: int):
+    """An "inside" room: ``n_face`` points 10 cm inside a face of a box of half-size 0.8 m (within the
+    inlier margin of 0.42 m: inliers) and ``n_deep`` points at its centre (0.8 m deep: against it), in two
+    blocks."""
+    half = np.full(3, 0.8)
+    face = np.c_[np.full(n_face, 0.7), np.linspace(-0.01, 0.01, n_face), np.zeros(n_face)]
+    deep = np.zeros((n_deep, 3))
+    room = RoomPoints.build(world(np.concatenate([face, deep])), None, "inside")
+    assert len(room.start) == 2 + (n_deep > 0)
+    return room, half, n_face * occluding(0.01) + n_deep * occluding(0.64)
+
+
+def test_a_block_inside_a_box_but_within_the_margin_of_its_face_can_still_gain():
+    room, half, gain = _inside_and_near_the_face(10, 0)
+    args = (np.zeros(10), CENTER[None], half[None], R[None])
+    assert _gains(room, *args) == pytest.approx([gain])
+    assert _gains(room, *args, prune_below=gain - 0.01) == pytest.approx([gain])
+
+
+def test_a_box_is_scored_first_on_the_blocks_deep_inside_it():
+    """Points deeper inside than the inlier margin can only count against the box: their block is scored
+    before the blocks that might gain (here the one of larger bound), so a box that hides them is abandoned
+    at once."""
+    room, half, gain = _inside_and_near_the_face(10, 5)
+    args = (np.zeros(15), CENTER[None], half[None], R[None])
+    assert gain < 0
+    assert _gains(room, *args) == pytest.approx([gain])
+    # the face's block alone reaches 8.4: scored first, it would keep the box past a threshold of 8
+    assert _gains(room, *args, prune_below=8.0).tolist() == [-np.inf]
+    assert _gains(room, *args, prune_below=gain - 0.01) == pytest.approx([gain])
+
+
 def test_views_pruning_counts_only_the_blocks_seen_through_or_near_the_box():
     # 5 points 10 cm off the box (one block, bound 5) and one 2.8 m away (bound 1), each seen from beside
     # itself: the far block is neither near nor seen through the box, so a threshold of 5.3 prunes the box
