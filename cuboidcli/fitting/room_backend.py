@@ -139,22 +139,24 @@ class RoomBackend(ScoringBackend):
         room, _ = self._points_of(points)
         st = _np64(state)
         boxes = [_np64(x) for x in (centers, half_sizes, rotations)]
-        bound, order = self._bound_of(room, st)
+        bound, order, held = self._bound_of(room, st)
         with _one_thread_if(len(boxes[0]) == 1):
-            return room_gains(room, st, *boxes, self._params(sp), prune_below, bound, order)
+            return room_gains(room, st, *boxes, self._params(sp), prune_below, bound, order, held)
 
-    def _bound_of(self, room: RoomPoints, state: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(:meth:`RoomPoints.block_bound` of ``state``, the blocks by that bound, largest first), kept for
+    def _bound_of(self, room: RoomPoints, state: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(:meth:`RoomPoints.block_bound` of ``state``, the blocks by that bound, largest first, and
+        :meth:`RoomPoints.block_held` of ``state``), kept for
         the last (points, state) pair: a step scores the winner's face moves, thousands of calls of one
         box each in a room, against one state (compared by content, so a state changed in place or
         handed over again as another array is not mistaken for the last)."""
         cached = self._bound_cache
         if cached is not None and cached[0] is room and np.array_equal(cached[1], state):
-            return cached[2], cached[3]
+            return cached[2:]
         bound = room.block_bound(state)
         order = np.argsort(-bound, kind="stable")
-        self._bound_cache = (room, state.copy(), bound, order)
-        return bound, order
+        held = room.block_held(state)
+        self._bound_cache = (room, state.copy(), bound, order, held)
+        return bound, order, held
 
     def refine(
         self, points, center, half, rotation, a_min: float, a_max: float,
@@ -181,18 +183,19 @@ class RoomBackend(ScoringBackend):
         sub_state = st[self._nom_index]
         sub_bound = self._nom.block_bound(sub_state)
         sub_order = np.argsort(-sub_bound, kind="stable")
+        sub_held = self._nom.block_held(sub_state)
         g_sub = np.full(len(c), -np.inf)
         floor = -np.inf
         for s in range(0, len(c), NOMINATION_CHUNK):
             e = min(s + NOMINATION_CHUNK, len(c))
             g_sub[s:e] = room_gains(
-                self._nom, sub_state, c[s:e], a[s:e], R[s:e], params, floor, sub_bound, sub_order
+                self._nom, sub_state, c[s:e], a[s:e], R[s:e], params, floor, sub_bound, sub_order, sub_held
             )
             if e >= NOMINATED:
                 floor = float(np.partition(g_sub[:e], -NOMINATED)[-NOMINATED]) - PRUNE_MARGIN
         top = np.argsort(-g_sub, kind="stable")[:NOMINATED]
-        bound, order = self._bound_of(self.room, st)
-        g_top = room_gains(self.room, st, c[top], a[top], R[top], params, bound=bound, order=order)
+        bound, order, held = self._bound_of(self.room, st)
+        g_top = room_gains(self.room, st, c[top], a[top], R[top], params, bound=bound, order=order, held=held)
         threshold = float(g_top.max()) - PRUNE_MARGIN
         # the nominees' exact gains are known: the full pass scores the others (each hypothesis is summed
         # alone, in the same block order, so a gain is the same number from either call)
@@ -200,9 +203,7 @@ class RoomBackend(ScoringBackend):
         rest[top] = False
         g = np.empty(len(c))
         g[top] = g_top
-        g[rest] = room_gains(
-            self.room, st, c[rest], a[rest], R[rest], params, prune_below=threshold, bound=bound, order=order
-        )
+        g[rest] = room_gains(self.room, st, c[rest], a[rest], R[rest], params, threshold, bound, order, held)
         best = int(np.argmax(g))
         return best, float(g[best]), on_cpu_as(g, points)
 

@@ -15,8 +15,9 @@ import math
 import numpy as np
 import pytest
 
-from cuboidcli.geometry.room import RoomPoints, room_gains, room_params, room_values
+from cuboidcli.geometry.room import _MODE, RoomPoints, room_gains, room_params, room_values
 from cuboidcli.geometry.room_refine import _rodrigues, _surface_loss, refine_surface_adam
+from cuboidcli.geometry.room_value import at_most
 
 TAU, BETA, TAU_C = 0.02, 5.0, 0.04
 PARAMS = room_params(TAU, BETA, TAU_C)
@@ -347,6 +348,97 @@ def test_a_box_is_scored_first_on_the_blocks_deep_inside_it():
     # the face's block alone reaches 8.4: scored first, it would keep the box past a threshold of 8
     assert _gains(room, *args, prune_below=8.0).tolist() == [-np.inf]
     assert _gains(room, *args, prune_below=gain - 0.01) == pytest.approx([gain])
+
+
+def _most(visibility, local_points, local_views=None, half=(0.8, 0.8, 0.8), near=True):
+    """What any point of a one-block room can add at most for the box of ``half`` at CENTER, R."""
+    views = None if local_views is None else world(local_views)
+    room = RoomPoints.build(world(local_points), views, visibility)
+    assert len(room.start) == 2
+    args = (room.lo, room.hi, room.view_lo, room.view_hi, 0, *CENTER, R, *half, PARAMS)
+    return at_most(*args, _MODE[visibility], near)
+
+
+# a block of points 0.7-0.72 m deep inside the box of half-size 0.8 m (the inlier margin is 0.42 m) and one
+# 5-7 cm inside its +x face
+DEEP = np.c_[np.zeros(3), [-0.02, 0.0, 0.1], np.zeros(3)]
+AT_FACE = np.c_[[0.73, 0.74, 0.75], np.zeros(3), np.zeros(3)]
+
+
+def test_a_point_deep_inside_a_box_adds_at_most_the_penalty_at_the_block_s_least_depth():
+    # "inside": each deep point counts f_IO of its depth, the least of which is 0.7 m (loosened by a
+    # millionth)
+    most = _most("inside", DEEP)
+    assert most == pytest.approx(occluding(0.7**2) * (1 - 1e-6), rel=1e-9)
+    assert occluding(0.7**2) < most < -1.7
+    # "views", seen from outside the box: hidden by the side the line of sight leaves through
+    outside = np.tile([1.5, 0.0, 0.0], (3, 1))
+    assert _most("views", DEEP, outside) == pytest.approx(most)
+    # "plain": nothing counts against a box, and a point beyond the margin adds nothing
+    assert _most("plain", DEEP) == 0.0
+    # seen from just inside the box (5 cm, within sqrt(tau) = 14 cm): the line of sight never leaves the box,
+    # the viewpoint's penalty is not yet below 0
+    shallow = np.tile([0.75, 0.0, 0.0], (3, 1))
+    assert _most("views", DEEP, shallow) == 0.0
+    # viewpoints both inside and outside the box: only 0 is sure
+    mixed = np.array([[0.78, 0.1, 0.1], [0.82, 0.1, 0.1], [0.9, 0.1, 0.1]])
+    assert _most("views", DEEP, mixed) == 0.0
+
+
+def test_a_point_seen_from_deep_inside_a_box_adds_at_most_the_viewpoint_s_penalty():
+    # points at the face (inliers on their own) seen from 0.5 m inside: a viewpoint inside the box is
+    # penalised by its depth, here at least 0.3 m
+    inside = np.c_[[0.2, 0.25, 0.3], np.zeros(3), np.zeros(3)]
+    most = _most("views", AT_FACE, inside)
+    assert occluding(0.5**2) <= most <= occluding(0.3**2) * (1 - 1e-6) + 1e-12
+    # and so does a block reached by lines of sight alone
+    assert _most("views", AT_FACE + [0.6, 0, 0], inside, near=False) == pytest.approx(most)
+
+
+def test_a_block_within_the_margin_of_the_surface_may_gain_and_one_beyond_it_may_not():
+    assert _most("views", AT_FACE, AT_FACE + [0.5, 0, 0]) == 1.0
+    assert _most("inside", AT_FACE) == 1.0
+    # 0.3 m deep is within the margin of 0.42 m
+    assert _most("plain", np.c_[np.full(3, 0.5), [0.0, 0.01, 0.02], np.zeros(3)]) == 1.0
+    # seen from 1-3 cm inside the box (less than sqrt(tau) = 14 cm): the viewpoint's penalty is not below 0
+    assert _most("views", AT_FACE, AT_FACE + [0.04, 0.1, 0.1]) == 1.0
+    assert _most("views", AT_FACE + [0.6, 0, 0], AT_FACE + [1.0, 0, 0], near=False) == 0.0
+
+
+def test_a_block_s_held_points_are_those_of_state_at_least_0():
+    room = RoomPoints.build(world(AT_FACE), None, "plain")
+    state = np.array([0.5, -0.2, 0.0])[room.order]
+    assert room.block_held(state).tolist() == [[2.0, 0.5]]
+
+
+def test_views_pruning_keeps_a_box_that_reaches_the_threshold_past_points_deep_inside_it():
+    """Points deep inside, seen from outside: their block counts against the box by no more than its bound,
+    and a box that still reaches the threshold is kept. The other block, 10 points 1 cm off the face, can
+    gain at most 10 and gains 9.93: a bound of the deep block's 2 points lower than 2 f_IO(0.64) by 0.07
+    would abandon the box."""
+    on_face = np.c_[np.full(10, 0.81), np.linspace(-0.01, 0.01, 10), np.zeros(10)]
+    views = np.concatenate([np.tile([1.2, 0.0, 0.0], (10, 1)), np.tile([0.0, 0.0, 1.5], (2, 1))])
+    room = RoomPoints.build(world(np.concatenate([on_face, np.zeros((2, 3))])), world(views), "views")
+    assert len(room.start) == 3
+    half = np.full(3, 0.8)
+    exact = _gains(room, np.zeros(12), CENTER[None], half[None], R[None])[0]
+    assert exact == pytest.approx(10 * f_i(0.0001) + 2 * occluding(0.64))
+    got = _gains(room, np.zeros(12), CENTER[None], half[None], R[None], prune_below=exact - 1e-6)
+    assert got.tolist() == [exact]
+
+
+def test_pruning_keeps_a_box_past_points_deep_inside_it_that_another_box_explains():
+    """In "plain" visibility a point deep inside the box adds 0 whatever its state: the deep block's 4
+    points of state 0.5 take nothing from the box, which a bound of n (0 - state) would say they do."""
+    on_face = np.c_[np.full(10, 0.81), np.linspace(-0.01, 0.01, 10), np.zeros(10)]
+    room = RoomPoints.build(world(np.concatenate([on_face, np.zeros((4, 3))])), None, "plain")
+    assert len(room.start) == 3
+    half = np.full(3, 0.8)
+    state = np.r_[np.zeros(10), np.full(4, 0.5)]
+    exact = _gains(room, state, CENTER[None], half[None], R[None])[0]
+    assert exact == pytest.approx(10 * f_i(0.0001))
+    got = _gains(room, state, CENTER[None], half[None], R[None], prune_below=exact - 1e-6)
+    assert got.tolist() == [exact]
 
 
 def test_views_pruning_counts_only_the_blocks_seen_through_or_near_the_box():
