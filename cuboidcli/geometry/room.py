@@ -59,8 +59,8 @@ VIEW_CELL_M = 0.5
 
 @njit(parallel=True, cache=True)
 def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, view_lo, view_hi, voxel, voxel_lo,
-                voxel_hi, voxel_hull_lo, voxel_hull_hi, bound, held, order, centers, half, rot, threshold,
-                params, mode, spread, out):  # fmt: skip
+                voxel_hi, voxel_hull_lo, voxel_hull_hi, bound, tail, held, order, centers, half, rot,
+                threshold, params, mode, spread, out):  # fmt: skip
     n_blocks = start.shape[0] - 1
     margin = math.sqrt(params[5])
     for p in prange(centers.shape[0]):
@@ -82,7 +82,14 @@ def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, view_lo, vi
         lose_most = np.empty(n_blocks, dtype=np.float64)
         n_visit = n_lose = 0
         remaining = 0.0
+        pruned = False
         for k in range(n_blocks):
+            # the blocks not yet listed add at most their bounds, ``tail[k]``: a box whose blocks listed so
+            # far lose more than the rest can gain is abandoned before the rest are tested (and at the
+            # first check below)
+            if remaining + tail[k] + 1e-7 < threshold:
+                pruned = True
+                break
             b = order[k]
             if not reach[voxel[b]]:
                 continue
@@ -119,7 +126,6 @@ def _room_gains(points, views, old, start, lo, hi, hull_lo, hull_hi, view_lo, vi
                 n_visit += 1
                 remaining += bound[b]
         acc = 0.0
-        pruned = False
         # the blocks that can only lose first: a box that hides much of what was seen (one across the
         # room) falls below the threshold before its many blocks that might gain are scored, often at once
         for j in range(n_lose + n_visit):
@@ -305,11 +311,12 @@ def room_gains(
     if order is None:
         order = np.argsort(-bound, kind="stable")
     c, a, R = (np.ascontiguousarray(x, np.float64) for x in (centers, half_sizes, rotations))
+    tail = np.r_[np.cumsum(bound[order][::-1])[::-1], 0.0]
     _room_gains(
         room.points, room.views, state, room.start, room.lo, room.hi, room.hull_lo, room.hull_hi,
         room.view_lo, room.view_hi, room.voxel, room.voxel_lo, room.voxel_hi, room.voxel_hull_lo,
-        room.voxel_hull_hi, bound, held, order, c, a, R, float(prune_below), params, _MODE[room.visibility],
-        _spread(len(c)), out,
+        room.voxel_hull_hi, bound, tail, held, order, c, a, R, float(prune_below), params,
+        _MODE[room.visibility], _spread(len(c)), out,
     )  # fmt: skip
     return out
 
