@@ -30,7 +30,7 @@ class Job:
     Ray tasks, which build their :class:`~cuboidcli.api.Fitter` from it once (:func:`fitter_for`)."""
 
     config: FitConfig
-    """The settings; those left unset take the input's kind's defaults (a room: 40 cuboids)."""
+    """The settings; those left unset take the input's kind's defaults (a room: up to 60 cuboids)."""
     weights: str | None = None
     onnx: str | None = None
     options: LoadOptions = LoadOptions()

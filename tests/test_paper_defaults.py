@@ -23,7 +23,7 @@ def test_estimator_defaults_are_the_papers():
     assert cfg.beta == 5.0
     assert cfg.tau_c == pytest.approx(2 * 0.004)  # tau_c = 2 tau
     assert cfg.min_set == 6  # C
-    assert cfg.max_cuboids is None and cfg.for_kind("frame").max_cuboids == 8  # a frame's (a room's: 40)
+    assert cfg.max_cuboids is None and cfg.for_kind("frame").max_cuboids == 8  # a frame's (a room's: 60)
     assert cfg.step_for(480, 640) == 8  # 480x640 -> 60x80 = 4800 fitting points
     assert (cfg.a_min, cfg.a_max) == (1e-3, 2.0)
     assert (cfg.solver_lr, cfg.solver_iters) == (0.01, 50)  # Adam, NYU

@@ -124,7 +124,7 @@ def test_max_cuboids_reaches_a_room(room, tmp_path):
     assert capped["settings"]["max_cuboids"] == 8 and len(capped["cuboids"]) == 8
     assert capped["fit_info"]["stop_reason"] == "max_cuboids"
     default = _fit(tmp_path, room)
-    assert default["settings"]["max_cuboids"] == 40 and 8 < len(default["cuboids"]) <= 40
+    assert default["settings"]["max_cuboids"] == 60 and 8 < len(default["cuboids"]) <= 60
     # a room's settings are flat, with how it was read
     assert "scene" not in default["settings"] and default["settings"]["load"] == {"unit": "m"}
     assert default["settings"]["voxel_m"] == 0.035 and default["settings"]["up"] is None

@@ -170,7 +170,7 @@ def fit(
     With only an RGB image, depth comes from a monocular depth network (the built-in one by default).
     A point cloud or mesh (.ply, .pcd, .obj, .glb/.gltf, .npy/.npz of points) or a posed RGB-D sequence
     folder (TUM, ScanNet, Redwood, or depth/ + pose/ + cameras.json) is fitted as one room, in its own
-    frame, with up to 40 cuboids."""
+    frame, with up to 60 cuboids."""
     camera = prefer_new(camera, preset, "--preset", "--camera")
     settings = dict(
         hypotheses=hypotheses, max_cuboids=max_cuboids, sampler=sampler, solver=solver, seed=seed,

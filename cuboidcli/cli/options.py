@@ -98,7 +98,7 @@ def flags(name: str) -> str:
 
 def shown_default(name: str) -> str:
     """Field ``name``'s default as the help shows it: the value, the flag a switch is on by default, or for
-    a setting whose default depends on the input, a frame's and a room's (``8; a room: 40``)."""
+    a setting whose default depends on the input, a frame's and a room's (``8; a room: 60``)."""
     value = getattr(DEFAULTS, name)
     if value is None and name in KIND_DEFAULTS["frame"]:
         return f"{KIND_DEFAULTS['frame'][name]}; a room: {KIND_DEFAULTS['room'][name]}"

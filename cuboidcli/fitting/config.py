@@ -24,7 +24,7 @@ VISIBILITY_CHOICES = ("auto", "views", "inside", "plain")
 #: a sequence, a point array). A setting left at None takes its input's value (:meth:`FitConfig.for_kind`).
 KIND_DEFAULTS: dict[str, dict[str, int]] = {
     "frame": {"max_cuboids": 8, "fit_points": 4800},
-    "room": {"max_cuboids": 40, "fit_points": 40000},
+    "room": {"max_cuboids": 60, "fit_points": 40000},
 }
 #: Settings only a room reads; a frame's result leaves them out (:meth:`FitConfig.to_dict`).
 ROOM_ONLY = ("voxel_m", "visibility", "up", "virtual_view_m")
@@ -41,7 +41,8 @@ class FitConfig:
     max_cuboids: int | None = None
     """Upper bound on |M|, the number of cuboids returned.
 
-    None = the input's default: 8 for a frame, 40 for a room (:data:`KIND_DEFAULTS`)."""
+    None = the input's default: 8 for a frame, 60 for a room (:data:`KIND_DEFAULTS`; on real scans and
+    sequences Theta ends a room first, at 20-55 cuboids)."""
     min_set: int = 6
     """C: points per minimal set, drawn with replacement (Sec. 3.3)."""
     tau_sq_m2: float = 0.004

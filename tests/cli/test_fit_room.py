@@ -29,7 +29,7 @@ def test_a_point_cloud_gives_a_world_frame_result_and_its_outputs(tmp_path):
     assert r.exit_code == 0, r.output
     d = json.loads(out.read_text())
     assert d["frame"] == "world" and d["camera"] is None
-    assert d["settings"]["max_cuboids"] == 40 and d["settings"]["voxel_m"] == 0.1
+    assert d["settings"]["max_cuboids"] == 60 and d["settings"]["voxel_m"] == 0.1
     assert "scene" not in d["settings"] and d["settings"]["load"] == {"unit": "m"}
     kinds = [c["kind"] for c in d["cuboids"]]
     assert "floor" in kinds and kinds.count("wall") >= 3
