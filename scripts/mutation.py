@@ -203,6 +203,7 @@ TARGETS = (
         Target(name, path, None, ("tests/geometry/test_room_kernels.py",), (("NUMBA_DISABLE_JIT", "1"),))
         for name, path in (
             ("room_kernels", "cuboidcli/geometry/room.py"),
+            ("room_value", "cuboidcli/geometry/room_value.py"),
             ("room_refine", "cuboidcli/geometry/room_refine.py"),
         )
     ),

@@ -17,7 +17,7 @@ import pytest
 
 from cuboidcli.geometry.room import _MODE, RoomPoints, room_gains, room_params, room_values
 from cuboidcli.geometry.room_refine import _rodrigues, _surface_loss, refine_surface_adam
-from cuboidcli.geometry.room_value import at_most
+from cuboidcli.geometry.room_value import at_most, block_local, meets_local
 
 TAU, BETA, TAU_C = 0.02, 5.0, 0.04
 PARAMS = room_params(TAU, BETA, TAU_C)
@@ -395,13 +395,43 @@ def test_a_point_seen_from_deep_inside_a_box_adds_at_most_the_viewpoint_s_penalt
     assert _most("views", AT_FACE + [0.6, 0, 0], inside, near=False) == pytest.approx(most)
 
 
+def test_a_block_s_depth_is_that_of_its_bounding_box_on_the_box_s_shallowest_axis():
+    # points spread 15 cm either way along y, in a box 0.6 m deep along y and 0.8 m along x and z: 0.45 m
+    wide = np.c_[np.zeros(3), [-0.15, 0.0, 0.15], np.zeros(3)]
+    assert _most("inside", wide, half=(0.8, 0.6, 0.8)) == pytest.approx(occluding(0.45**2) * (1 - 1e-6))
+    # viewpoints spread 5 cm either way along z, 0.1 m off the middle along y, in a box 0.5 m deep along z
+    views = np.c_[np.zeros(3), np.full(3, 0.1), [-0.05, 0.0, 0.05]]
+    assert _most("views", AT_FACE, views, half=(0.8, 0.8, 0.5)) == pytest.approx(
+        occluding(0.45**2) * (1 - 1e-6)
+    )
+
+
+def test_a_block_in_a_box_s_frame_is_its_centre_s_offset_and_the_half_extents_of_its_turned_bounds():
+    lo, hi = np.array([[1.8, 2.9, 3.8]]), np.array([[2.2, 3.2, 4.3]])
+    got = np.array(block_local(lo, hi, 0, *CENTER, R))
+    centre, half = (lo[0] + hi[0]) / 2, (hi[0] - lo[0]) / 2
+    assert got[:3] == pytest.approx(np.abs(R.T @ (centre - CENTER)))
+    assert got[3:] == pytest.approx(np.abs(R.T) @ half)
+    # the block meets the box only where it does along each of the box's axes
+    a = np.abs(R.T @ (centre - CENTER)) - np.abs(R.T) @ half  # how far the block stays off each face pair
+    assert (a > 0.3).all()
+    for k in range(3):
+        half_size = np.full(3, 5.0)
+        half_size[k] = a[k] - 0.01
+        assert not meets_local(lo, hi, 0, *CENTER, R, *half_size)
+        half_size[k] = a[k] + 0.01
+        assert meets_local(lo, hi, 0, *CENTER, R, *half_size)
+
+
 def test_a_block_within_the_margin_of_the_surface_may_gain_and_one_beyond_it_may_not():
     assert _most("views", AT_FACE, AT_FACE + [0.5, 0, 0]) == 1.0
     assert _most("inside", AT_FACE) == 1.0
     # 0.3 m deep is within the margin of 0.42 m
     assert _most("plain", np.c_[np.full(3, 0.5), [0.0, 0.01, 0.02], np.zeros(3)]) == 1.0
-    # seen from 1-3 cm inside the box (less than sqrt(tau) = 14 cm): the viewpoint's penalty is not below 0
+    # seen from 1-3 cm, or 12-14 cm, inside the box (less than sqrt(tau) = 14 cm): the viewpoint's penalty is
+    # not below 0
     assert _most("views", AT_FACE, AT_FACE + [0.04, 0.1, 0.1]) == 1.0
+    assert _most("views", AT_FACE, AT_FACE + [-0.07, 0.1, 0.1]) == 1.0
     assert _most("views", AT_FACE + [0.6, 0, 0], AT_FACE + [1.0, 0, 0], near=False) == 0.0
 
 
