@@ -42,7 +42,7 @@ class FitConfig:
     """Upper bound on |M|, the number of cuboids returned.
 
     None = the input's default: 8 for a frame, 60 for a room (:data:`KIND_DEFAULTS`; on real scans and
-    sequences Theta ends a room first, at 20-55 cuboids)."""
+    sequences Theta ends a room first, at 15-55 cuboids)."""
     min_set: int = 6
     """C: points per minimal set, drawn with replacement (Sec. 3.3)."""
     tau_sq_m2: float = 0.004
