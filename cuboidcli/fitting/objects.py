@@ -46,6 +46,7 @@ import numpy as np
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.basins import object_basins
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
+from cuboidcli.fitting.nested import join_nested
 from cuboidcli.fitting.not_objects import (
     floor_to_ceiling,
     high_up,
@@ -72,7 +73,8 @@ MIN_OBJECT_POINTS = 20
 GROW_LIMIT_M = 1.5
 #: Points this many voxels or closer to a floor, wall or ceiling cuboid belong to the shell.
 SHELL_CLEARANCE = 1.5
-#: A group whose box lies at least this much (share of its volume) inside a larger group's box joins it.
+#: A group whose box lies at least this much (share of its volume) inside a larger group's box joins it when
+#: their colours agree (:func:`~cuboidcli.fitting.nested.join_nested`).
 MERGE_OVERLAP = 0.9
 #: A point's floor is the highest floor cuboid whose footprint comes this close to it (m), else the nearest
 #: (the lowest instead lost one of 31 synthetic objects on the bare clouds).
@@ -339,30 +341,18 @@ def group_objects(
                 groups[b] = np.concatenate([groups[b], groups[a][near == k]])
             del groups[a]
             known.clear()
-    merged = True
-    while merged:
-        merged = False
-        order = sorted(groups, key=lambda g: -len(groups[g]))
-        for i, a in enumerate(order):
-            for b in order[i + 1 :]:
-                lo_a, hi_a, vol_a = box_of(a, a)
-                lo_b, hi_b, vol_b = box_of(b, a)  # the smaller group in a's heading
-                common = 1.0
-                for k in range(3):
-                    common *= max(min(hi_a[k], hi_b[k]) - max(lo_a[k], lo_b[k]), 0.0)
-                smaller = min(vol_a, vol_b)
-                if common >= MERGE_OVERLAP * smaller:
-                    groups[a] = np.concatenate([groups[a], groups.pop(b)])
-                    known = {k: v for k, v in known.items() if a not in k and b not in k}
-                    merged = True
-                    break
-            if merged:
-                break
+    if colors is not None:
+        colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+
+    def forget(a: int, b: int) -> None:
+        for k in [k for k in known if a in k or b in k]:
+            del known[k]
+
+    join_nested(groups, box_of, forget, MERGE_OVERLAP, None if colors is None else colors[idx])
 
     walls = [c for c in cuboids if c.kind == "wall"]
     wall_colour: dict[int, np.ndarray] = {}  # the median colour of each wall's inliers
     if colors is not None:
-        colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
         for j, i in enumerate(i for i, c in enumerate(cuboids) if c.kind == "wall"):
             on = labels == i
             if on.sum() >= MIN_OBJECT_POINTS:
