@@ -6,14 +6,14 @@ from __future__ import annotations
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.nested import MERGE_COLOUR, join_nested
+from cuboidcli.fitting.nested import MERGE_COLOUR, OWN_POINTS, join_nested
 from cuboidcli.fitting.objects import group_objects
 from tests.fitting.test_objects import VOXEL, _grid
 
 UP = np.array([0.0, 0.0, 1.0])
 
 
-def _join(colours, sizes=(10, 4, 2), nested=True):
+def _join(colours, sizes=(300, 150, 120), nested=True):
     """Group 0 (a 1 m box), group 1 inside it, group 2 inside it too when ``nested`` (else 2 m away);
     ``colours`` (one per point, or None)."""
     start = np.cumsum([0, *sizes])
@@ -34,7 +34,7 @@ def _join(colours, sizes=(10, 4, 2), nested=True):
     return groups, forgotten
 
 
-def _colours(*per_group, sizes=(10, 4, 2)):
+def _colours(*per_group, sizes=(300, 150, 120)):
     return np.concatenate(
         [np.tile(np.asarray(c, dtype=float), (n, 1)) for c, n in zip(per_group, sizes, strict=True)]
     )
@@ -45,7 +45,7 @@ def test_a_nested_group_joins_when_the_colours_agree_or_are_unknown():
     for colours in (None, _colours(grey, [100, 100, 100 + MERGE_COLOUR], [0, 0, 0])):
         groups, forgotten = _join(colours, nested=False)
         assert sorted(groups) == [0, 2]  # the far group 2 never joins
-        assert sorted(groups[0].tolist()) == list(range(14))
+        assert sorted(groups[0].tolist()) == list(range(450))
         assert forgotten == [(0, 1)]
 
 
@@ -54,14 +54,23 @@ def test_a_nested_group_of_another_colour_stays_apart():
     assert sorted(groups) == [0, 1, 2] and forgotten == []
 
 
+def test_a_small_nested_group_of_another_colour_is_a_part():
+    sizes = (300, OWN_POINTS - 1, 120)
+    groups, _ = _join(_colours([100] * 3, [200] * 3, [0] * 3, sizes=sizes), sizes=sizes, nested=False)
+    assert sorted(groups) == [0, 2]
+    sizes = (300, OWN_POINTS, 120)
+    groups, _ = _join(_colours([100] * 3, [200] * 3, [0] * 3, sizes=sizes), sizes=sizes, nested=False)
+    assert sorted(groups) == [0, 1, 2]
+
+
 def test_a_group_is_judged_by_its_colour_after_it_grew():
     """Group 0 is half grey, half red (its median between them); group 1, grey, joins it and makes it
     grey, so group 2, red, no longer has its colour (it had before group 1 joined)."""
     grey, red = [100.0, 100.0, 100.0], [170.0, 100.0, 100.0]
-    half = _colours(grey, red, sizes=(5, 5))
-    groups, forgotten = _join(np.concatenate([half, _colours(grey, [165.0, 100, 100], sizes=(4, 2))]))
+    half = _colours(grey, red, sizes=(150, 150))
+    groups, forgotten = _join(np.concatenate([half, _colours(grey, [165.0, 100, 100], sizes=(150, 120))]))
     assert sorted(groups) == [0, 2] and forgotten == [(0, 1)]
-    groups, _ = _join(np.concatenate([half, _colours([165.0, 100, 100], sizes=(6,))]), sizes=(10, 4, 2))
+    groups, _ = _join(np.concatenate([half, _colours([165.0, 100, 100], sizes=(270,))]))
     assert sorted(groups) == [0]  # both within 30 of the median at their turn
 
 
