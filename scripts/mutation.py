@@ -222,9 +222,10 @@ TARGETS = (
         )
         for name in ("objects", "not_objects")
     ),
-    # the sinks set into a counter's top, and seats side by side under one back
+    # the sinks set into a counter's top, seats side by side under one back, and nested groups joined
     Target("basins", "cuboidcli/fitting/basins.py", None, ("tests/fitting/test_basins.py",)),
     Target("seats", "cuboidcli/fitting/seats.py", None, ("tests/fitting/test_seats.py",)),
+    Target("nested", "cuboidcli/fitting/nested.py", None, ("tests/fitting/test_nested.py",)),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.

@@ -105,7 +105,7 @@ def test_a_stool_under_a_table_is_its_own_object_when_its_colour_differs():
     pts, labels, cuboids, colors, stool = _table_and_stool()
     (one,) = group_objects(pts, labels, cuboids, UP, VOXEL, colors)  # all one wood: one object
     assert one.cuboids == (1, 2)
-    colors[stool] = [40.0, 40.0, 40.0]  # a black stool
+    colors[stool] = [100.0, 150.0, 150.0]  # a stool of another wood: 50 apart in RGB
     two = group_objects(pts, labels, cuboids, UP, VOXEL, colors)
     assert sorted(o.cuboids for o in two) == [(1,), (2,)]
     (stool_box,) = [o.box for o in two if o.cuboids == (2,)]
