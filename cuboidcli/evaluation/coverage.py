@@ -21,6 +21,7 @@ import numpy as np
 
 from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
+from cuboidcli.geometry.plan import convex_hull_2d
 
 #: Pairs of corner indices of :meth:`Cuboid.corners` that differ in one local axis: the 12 box edges.
 BOX_EDGES = tuple((k, k ^ bit) for k in range(8) for bit in (1, 2, 4) if k < k ^ bit)
@@ -35,27 +36,6 @@ def clip_corners_near(corners: np.ndarray, near_m: float = 1e-6) -> np.ndarray:
             t = z[i] / (z[i] - z[j])
             kept.append((corners[i] + t * (corners[j] - corners[i]))[None])
     return np.concatenate(kept, axis=0)
-
-
-def convex_hull_2d(points: np.ndarray) -> np.ndarray:
-    """Convex hull of points (K, 2), counter-clockwise (positive cross products), without repeats: (P, 2)."""
-    pts = np.unique(np.asarray(points, dtype=np.float64), axis=0)  # sorted by x, then y
-    if len(pts) < 3:
-        return pts
-
-    def half(seq) -> list:
-        chain: list = []
-        for p in seq:
-            while len(chain) >= 2:
-                (ox, oy), (ax, ay) = chain[-2], chain[-1]
-                if (ax - ox) * (p[1] - oy) - (ay - oy) * (p[0] - ox) > 0.0:
-                    break
-                chain.pop()
-            chain.append(p)
-        return chain
-
-    lower, upper = half(pts), half(pts[::-1])
-    return np.array(lower[:-1] + upper[:-1])
 
 
 def polygon_area(poly: np.ndarray) -> float:

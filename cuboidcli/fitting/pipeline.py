@@ -262,9 +262,11 @@ def estimate(
         c.kind = cuboid_kind(points, c, inp.down, inp.viewpoint)
     room = inp.room
     if room is not None:
-        from cuboidcli.fitting.room import low_walls_are_furniture
+        from cuboidcli.fitting.room import beyond_the_room_is_wall, low_walls_are_furniture
 
         low_walls_are_furniture(cuboids, points, room.up.up)
+        if inp.views == "none":
+            beyond_the_room_is_wall(cuboids, points, room.up.up)
     timing["total"] = time.perf_counter() - inp.started
     t = time.perf_counter()
     backend = inp.backend or backend_for(config.backend, device_of(inp.points))

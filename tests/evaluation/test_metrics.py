@@ -13,12 +13,13 @@ from cuboidcli.camera import Camera
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.evaluation.aggregate import aggregate, mean_std
 from cuboidcli.evaluation.auc import AucStats, auc
-from cuboidcli.evaluation.coverage import clip_corners_near, convex_hull_2d, coverage_mask, fill_convex
+from cuboidcli.evaluation.coverage import clip_corners_near, coverage_mask, fill_convex
 from cuboidcli.evaluation.iou import box_iou, greedy_matches, intersection_volume
 from cuboidcli.evaluation.metrics import frame_metrics
 from cuboidcli.evaluation.oa import oa_distances, oa_sq_distances, oa_sq_prefix_distances, oa_sq_terms
 from cuboidcli.evaluation.raycast import ray_coverage_mask, render_depth
 from cuboidcli.geometry.kernels import oa_sq_distance
+from cuboidcli.geometry.plan import convex_hull_2d
 from cuboidcli.geometry.rotations import quaternion_to_matrix
 
 NYU = Camera.preset("nyu")

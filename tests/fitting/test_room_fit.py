@@ -279,6 +279,53 @@ def test_a_wall_whose_top_the_scan_missed_stays_a_wall():
     assert on_side.kind == "wall"
 
 
+def test_a_box_reaching_beyond_the_scanned_room_is_a_wall():
+    """A scan holds its whole room: an object cuboid with 30 % or more of its volume beyond the room's outline
+    seen from above is a wall fitted with the thickness of what is behind it; one less beyond stays an
+    object, and so does a box inside; other kinds stay as they are."""
+    from cuboidcli.fitting.room import BEYOND_SHARE, beyond_the_room_is_wall
+    from cuboidcli.geometry.plan import SAMPLES
+
+    points = scanned_room()
+    up = np.array([0.0, 0.0, 1.0])
+
+    def box(x0, x1, kind="object"):  # a box from x0 to x1 across the room's wall at x = 4
+        return Cuboid([(x0 + x1) / 2, 1.5, 1.0], [(x1 - x0) / 2, 0.5, 1.0], np.eye(3), kind=kind)
+
+    # 11 samples 10 cm apart along x: 4 of them beyond x = 4 (the last inside at 3.95 m), or 3
+    behind, edge, cabinet = box(3.35, 4.35), box(3.25, 4.25), box(0.15, 0.75)
+    floor = box(3.35, 4.35, kind="floor")
+    beyond_the_room_is_wall([behind, edge, cabinet, floor], points, up)
+    assert [c.kind for c in (behind, edge, cabinet, floor)] == ["wall", "object", "object", "floor"]
+    assert SAMPLES == 11 and 3 / 11 < BEYOND_SHARE <= 4 / 11
+    on_side = Cuboid([1.0, 1.5, 4.0], [1.0, 0.5, 0.5], np.eye(3))  # the same room with up along +x
+    beyond_the_room_is_wall([on_side], points[:, ::-1], np.array([1.0, 0.0, 0.0]))
+    assert on_side.kind == "wall"
+    beyond_the_room_is_wall([edge], points[:2], up)  # too few points for an outline: nothing changes
+    assert edge.kind == "object"
+
+
+def test_only_a_scan_is_outlined_not_a_sequence(parts, monkeypatch):
+    """A sequence's points end where its views ended (the front of a refrigerator in a corner): its cuboids
+    are not held to that outline."""
+    import cuboidcli.fitting.room as room_module
+
+    calls = []
+    monkeypatch.setattr(room_module, "beyond_the_room_is_wall", lambda *a: calls.append(len(a[0])))
+    points = scanned_room()
+    _fit(parts, points, max_cuboids=2)
+    assert len(calls) == 1
+    config, solver, sampler = parts
+    fit_room(
+        points,
+        replace(config, voxel_m=0.1, max_cuboids=2),
+        solver=solver,
+        sampler=sampler,
+        viewpoints=np.tile([2.0, 1.5, 1.2], (len(points), 1)),
+    )
+    assert len(calls) == 1
+
+
 def test_the_real_living_room_fragment_stands_upright_without_an_up_hint():
     """The real living-room fragment is stored in a camera's frame (y down): fitted with no --up, its large
     wall is a wall (not a ceiling, as with z up), and the fit says in one warning that its up is unsure."""

@@ -1,0 +1,55 @@
+"""A room's plan (cuboidcli.geometry.plan): its convex outline from above and the share of a box beyond it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cuboidcli.cuboid import Cuboid
+from cuboidcli.geometry.gravity import level_frame
+from cuboidcli.geometry.plan import SAMPLES, inside_convex, room_outline, share_beyond
+
+UP = np.array([0.0, 0.0, 1.0])
+
+
+def _room(up_axis=2):
+    """A 4 x 3 m room's floor and walls as points, with up along ``up_axis``."""
+    g = np.random.default_rng(0)
+    floor = np.c_[g.uniform(0, 4, 3000), g.uniform(0, 3, 3000), np.zeros(3000)]
+    walls = np.c_[g.choice([0.0, 4.0], 1000), g.uniform(0, 3, 1000), g.uniform(0, 2.5, 1000)]
+    pts = np.concatenate([floor, walls, [[0, 0, 0], [4, 0, 0], [0, 3, 0], [4, 3, 0]]])
+    return np.roll(pts, up_axis - 2, axis=1)
+
+
+def test_points_inside_on_and_outside_a_square():
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    xy = np.array([[0.5, 0.5], [1.0, 0.5], [0.0, 0.0], [1.01, 0.5], [0.5, -0.01], [-0.5, 2.0]])
+    assert inside_convex(square, xy).tolist() == [True, True, True, False, False, False]
+
+
+def test_the_outline_is_the_rooms_corners_seen_from_above():
+    outline = room_outline(_room(), level_frame(UP))
+    assert sorted(map(tuple, outline.round(3).tolist())) == [(0, 0), (0, 3), (4, 0), (4, 3)]
+
+
+@pytest.mark.parametrize("up_axis", [2, 1, 0])
+def test_the_share_of_a_box_beyond_the_rooms_outline(up_axis):
+    up = np.eye(3)[up_axis]
+    level = level_frame(up)
+    outline = room_outline(_room(up_axis), level)
+
+    def box(center, half, yaw=0.0):
+        c, s = np.cos(yaw), np.sin(yaw)
+        turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        lift = np.roll(np.eye(3), up_axis - 2, axis=0)  # level (x, y, z up) -> this room's axes
+        return Cuboid(lift @ np.asarray(center, float), np.asarray(half, float), lift @ turn)
+
+    assert share_beyond(box([2, 1.5, 0.5], [0.5, 0.5, 0.5]), outline, level) == 0.0
+    # across the wall at x = 4: the samples beyond it are those with x > 4 (on the wall counts inside)
+    across = box([4.0, 1.5, 1.0], [0.6, 1.0, 1.0])
+    assert share_beyond(across, outline, level) == pytest.approx((SAMPLES // 2) / SAMPLES)
+    beyond = box([4.5, 1.5, 1.0], [0.4, 1.0, 1.0])
+    assert share_beyond(beyond, outline, level) == 1.0
+    turned = box([2.0, 1.5, 1.0], [0.5, 0.5, 1.0], np.radians(45))  # inside whatever its heading
+    assert share_beyond(turned, outline, level) == 0.0
+    assert share_beyond(beyond, outline[:2], level) == 0.0  # an outline without area
