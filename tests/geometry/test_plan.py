@@ -53,3 +53,22 @@ def test_the_share_of_a_box_beyond_the_rooms_outline(up_axis):
     turned = box([2.0, 1.5, 1.0], [0.5, 0.5, 1.0], np.radians(45))  # inside whatever its heading
     assert share_beyond(turned, outline, level) == 0.0
     assert share_beyond(beyond, outline[:2], level) == 0.0  # an outline without area
+
+
+def test_the_outline_holds_every_point_to_within_its_strips():
+    """The outline is the hull of the strips' end points: every point lies inside it or at most a strip's
+    width out, and its corners are points of the cloud."""
+    from cuboidcli.geometry.plan import OUTLINE_CELL_M, convex_hull_2d
+
+    g = np.random.default_rng(3)
+    pts = np.c_[g.normal(0, 1.5, (20000, 2)) @ [[1.0, 0.4], [0.0, 0.6]], g.uniform(0, 2, 20000)]
+    outline = room_outline(pts, level_frame(UP))
+    edges = np.roll(outline, -1, axis=0) - outline
+    normals = np.c_[edges[:, 1], -edges[:, 0]] / np.linalg.norm(edges, axis=1)[:, None]  # outward (ccw)
+    out = ((pts[:, None, :2] - outline[None]) * normals[None]).sum(-1).max(1)
+    assert out.max() <= OUTLINE_CELL_M  # not the exact hull, but within a strip of it
+    assert set(map(tuple, outline)) <= set(map(tuple, pts[:, :2]))
+    exact = convex_hull_2d(pts[:, :2])
+    assert abs(len(outline) - len(exact)) <= 5
+    assert room_outline(pts[:0], level_frame(UP)).shape == (0, 2)  # no points, no outline
+    assert len(room_outline(pts[:2], level_frame(UP))) == 2
