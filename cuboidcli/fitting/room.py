@@ -171,7 +171,8 @@ def beyond_the_room_is_wall(cuboids: list[Cuboid], points: np.ndarray, up: np.nd
     level = level_frame(up)
     outline = room_outline(points, level)
     for c in cuboids:
-        if c.kind == "object" and share_beyond(c, outline, level) >= BEYOND_SHARE:
+        beyond = share_beyond(c.center, c.half_size, c.rotation, outline, level)
+        if c.kind == "object" and beyond >= BEYOND_SHARE:
             c.kind = "wall"
 
 

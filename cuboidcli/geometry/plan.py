@@ -8,8 +8,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from cuboidcli.cuboid import Cuboid
-
 #: A box's volume is sampled on this many points along each of its axes.
 SAMPLES = 11
 
@@ -65,13 +63,16 @@ def room_outline(points: np.ndarray, level: np.ndarray) -> np.ndarray:
     return convex_hull_2d(xy[order[ends]])
 
 
-def share_beyond(box: Cuboid, outline: np.ndarray, level: np.ndarray) -> float:
-    """The share of ``box``'s volume that lies beyond the ``outline`` (:func:`room_outline`, in the level
-    frame ``level``) seen from above, from :data:`SAMPLES` points along each of its axes. 0 when the
-    outline has no area (fewer than 3 corners)."""
+def share_beyond(
+    center: np.ndarray, half: np.ndarray, rotation: np.ndarray, outline: np.ndarray, level: np.ndarray
+) -> float:
+    """The share of a box's volume (``center`` (3,), ``half`` (3,) sizes along the columns of ``rotation``
+    (3, 3)) that lies beyond the ``outline`` (:func:`room_outline`, in the level frame ``level``) seen from
+    above, from :data:`SAMPLES` points along each of its axes. 0 when the outline has no area (fewer than 3
+    corners)."""
     if len(outline) < 3:
         return 0.0
     t = np.linspace(-1.0, 1.0, SAMPLES)
     grid = np.stack(np.meshgrid(t, t, t, indexing="ij"), -1).reshape(-1, 3)
-    world = (grid * box.half_size) @ box.rotation.T + box.center
+    world = (grid * np.asarray(half)) @ np.asarray(rotation).T + np.asarray(center)
     return 1.0 - float(np.mean(inside_convex(outline, world @ level[:, :2])))

@@ -5,7 +5,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cuboidcli.cuboid import Cuboid
 from cuboidcli.geometry.gravity import level_frame
 from cuboidcli.geometry.plan import SAMPLES, inside_convex, room_outline, share_beyond
 
@@ -42,17 +41,17 @@ def test_the_share_of_a_box_beyond_the_rooms_outline(up_axis):
         c, s = np.cos(yaw), np.sin(yaw)
         turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
         lift = np.roll(np.eye(3), up_axis - 2, axis=0)  # level (x, y, z up) -> this room's axes
-        return Cuboid(lift @ np.asarray(center, float), np.asarray(half, float), lift @ turn)
+        return lift @ np.asarray(center, float), np.asarray(half, float), lift @ turn
 
-    assert share_beyond(box([2, 1.5, 0.5], [0.5, 0.5, 0.5]), outline, level) == 0.0
+    assert share_beyond(*box([2, 1.5, 0.5], [0.5, 0.5, 0.5]), outline, level) == 0.0
     # across the wall at x = 4: the samples beyond it are those with x > 4 (on the wall counts inside)
     across = box([4.0, 1.5, 1.0], [0.6, 1.0, 1.0])
-    assert share_beyond(across, outline, level) == pytest.approx((SAMPLES // 2) / SAMPLES)
+    assert share_beyond(*across, outline, level) == pytest.approx((SAMPLES // 2) / SAMPLES)
     beyond = box([4.5, 1.5, 1.0], [0.4, 1.0, 1.0])
-    assert share_beyond(beyond, outline, level) == 1.0
+    assert share_beyond(*beyond, outline, level) == 1.0
     turned = box([2.0, 1.5, 1.0], [0.5, 0.5, 1.0], np.radians(45))  # inside whatever its heading
-    assert share_beyond(turned, outline, level) == 0.0
-    assert share_beyond(beyond, outline[:2], level) == 0.0  # an outline without area
+    assert share_beyond(*turned, outline, level) == 0.0
+    assert share_beyond(*beyond, outline[:2], level) == 0.0  # an outline without area
 
 
 def test_the_outline_holds_every_point_to_within_its_strips():
