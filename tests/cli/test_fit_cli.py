@@ -1,6 +1,7 @@
 """`cuboids fit` on small inputs, and one test per class of bad input (message and exit code)."""
 
 import json
+import os
 from pathlib import Path
 
 import cv2
@@ -456,6 +457,7 @@ def test_rerun_streams_a_fit_to_a_running_viewer(tmp_path, room_png, rerun_cli):
         [rerun_cli, "--port", "9876", "--save", str(saved)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        start_new_session=True,  # the launcher may start the viewer as a child: signal them together
     )
     try:
         for _ in range(100):  # until it listens (at most 10 s)
@@ -468,11 +470,11 @@ def test_rerun_streams_a_fit_to_a_running_viewer(tmp_path, room_png, rerun_cli):
         assert r.exit_code == 0, r.output
     finally:
         time.sleep(1.0)
-        server.send_signal(signal.SIGINT)  # it finishes the file and exits
+        os.killpg(server.pid, signal.SIGINT)  # it finishes the file and exits
         try:
             server.wait(timeout=20)
         except subprocess.TimeoutExpired:
-            server.kill()
+            os.killpg(server.pid, signal.SIGKILL)
             server.wait()
     names = [c["kind"] + f"_{c['id']:02d}" for c in json.loads(out.read_text())["cuboids"]]
     printed = subprocess.run([rerun_cli, "rrd", "print", "-vvv", str(saved)], capture_output=True, text=True)
