@@ -226,6 +226,8 @@ TARGETS = (
     Target("basins", "cuboidcli/fitting/basins.py", None, ("tests/fitting/test_basins.py",)),
     Target("seats", "cuboidcli/fitting/seats.py", None, ("tests/fitting/test_seats.py",)),
     Target("nested", "cuboidcli/fitting/nested.py", None, ("tests/fitting/test_nested.py",)),
+    # a room's outline from above, and the share of a box beyond it
+    Target("plan", "cuboidcli/geometry/plan.py", None, ("tests/geometry/test_plan.py",)),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.

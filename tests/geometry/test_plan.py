@@ -71,3 +71,17 @@ def test_the_outline_holds_every_point_to_within_its_strips():
     assert abs(len(outline) - len(exact)) <= 5
     assert room_outline(pts[:0], level_frame(UP)).shape == (0, 2)  # no points, no outline
     assert len(room_outline(pts[:2], level_frame(UP))) == 2
+
+
+def test_a_triangle_is_an_outline_too():
+    """Three points outline a triangle, counter-clockwise whatever their order; a box over its long edge lies
+    half beyond it."""
+    from cuboidcli.geometry.plan import convex_hull_2d
+
+    tri = np.array([[4.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 4.0, 0.0]])
+    outline = room_outline(tri, level_frame(UP))
+    assert len(outline) == 3 and len(convex_hull_2d(tri[::-1, :2])) == 3
+    assert inside_convex(outline, np.array([[1.0, 1.0], [3.0, 3.0]])).tolist() == [True, False]
+    across = (np.array([2.0, 2.0, 0.0]), np.array([0.5, 0.5, 0.5]), np.eye(3))  # centred on x + y = 4
+    share = share_beyond(*across, outline, level_frame(UP))
+    assert 0.4 < share < 0.5  # the samples on the edge count inside
