@@ -170,9 +170,8 @@ def beyond_the_room_is_wall(cuboids: list[Cuboid], points: np.ndarray, up: np.nd
         return
     level = level_frame(up)
     outline = room_outline(points, level)
-    for c in cuboids:
-        beyond = share_beyond(c.center, c.half_size, c.rotation, outline, level)
-        if c.kind == "object" and beyond >= BEYOND_SHARE:
+    for c in (c for c in cuboids if c.kind == "object"):
+        if share_beyond(c.center, c.half_size, c.rotation, outline, level) >= BEYOND_SHARE:
             c.kind = "wall"
 
 
