@@ -262,11 +262,11 @@ def estimate(
         c.kind = cuboid_kind(points, c, inp.down, inp.viewpoint)
     room = inp.room
     if room is not None:
-        from cuboidcli.fitting.room import beyond_the_room_is_wall, low_walls_are_furniture
+        from cuboidcli.fitting import room as room_rules
 
-        low_walls_are_furniture(cuboids, points, room.up.up)
-        if inp.views == "none":
-            beyond_the_room_is_wall(cuboids, points, room.up.up)
+        room_rules.low_walls_are_furniture(cuboids, points, room.up.up)
+        seen = room_rules.BEYOND_SHARE if inp.views == "none" else room_rules.BEYOND_SHARE_SEEN
+        room_rules.beyond_the_room_is_wall(cuboids, points, room.up.up, seen)
     timing["total"] = time.perf_counter() - inp.started
     t = time.perf_counter()
     backend = inp.backend or backend_for(config.backend, device_of(inp.points))

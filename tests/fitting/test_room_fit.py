@@ -303,18 +303,20 @@ def test_a_box_reaching_beyond_the_scanned_room_is_a_wall():
     assert on_side.kind == "wall"
     beyond_the_room_is_wall([edge], points[:2], up)  # too few points for an outline: nothing changes
     assert edge.kind == "object"
+    beyond_the_room_is_wall([edge], points, up, share=3 / 11)  # a looser bound takes it
+    assert edge.kind == "wall"
 
 
-def test_only_a_scan_is_outlined_not_a_sequence(parts, monkeypatch):
+def test_a_sequence_is_held_to_its_outline_more_loosely_than_a_scan(parts, monkeypatch):
     """A sequence's points end where its views ended (the front of a refrigerator in a corner): its cuboids
-    are not held to that outline."""
+    become walls only from a larger share beyond that outline."""
     import cuboidcli.fitting.room as room_module
 
-    calls = []
-    monkeypatch.setattr(room_module, "beyond_the_room_is_wall", lambda *a: calls.append(len(a[0])))
+    assert room_module.BEYOND_SHARE < room_module.BEYOND_SHARE_SEEN == 0.45
+    shares = []
+    monkeypatch.setattr(room_module, "beyond_the_room_is_wall", lambda *a: shares.append(a[3]))
     points = scanned_room()
     _fit(parts, points, max_cuboids=2)
-    assert len(calls) == 1
     config, solver, sampler = parts
     fit_room(
         points,
@@ -323,7 +325,7 @@ def test_only_a_scan_is_outlined_not_a_sequence(parts, monkeypatch):
         sampler=sampler,
         viewpoints=np.tile([2.0, 1.5, 1.2], (len(points), 1)),
     )
-    assert len(calls) == 1
+    assert shares == [room_module.BEYOND_SHARE, room_module.BEYOND_SHARE_SEEN]
 
 
 def test_the_real_living_room_fragment_stands_upright_without_an_up_hint():
