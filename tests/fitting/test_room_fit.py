@@ -345,3 +345,43 @@ def test_the_real_living_room_fragment_stands_upright_without_an_up_hint():
     assert largest["kind"] == "wall"
     assert not any(c["kind"] == "floor" for c in doc["cuboids"])
     assert "up direction unsure" in doc["up"]["warning"]
+
+
+def test_a_low_level_slab_is_floor():
+    """A level slab of half a square metre or more whose top is at most 25 cm above the floor under it is a
+    stretch of floor (a bent floor, a step); a seat at 35 cm, a small slab, a thick box, an upright slab and
+    a slab with no floor cuboid in the room stay objects."""
+    from cuboidcli.fitting.room import LOW_SLAB_AREA_M2, LOW_SLAB_TOP_M, low_slabs_are_floor
+
+    up = np.array([0.0, 0.0, 1.0])
+    floor = Cuboid([2.0, 1.5, -0.02], [2.0, 1.5, 0.02], np.eye(3), kind="floor")  # its top at z = 0
+    c, s = np.cos(np.radians(30)), np.sin(np.radians(30))
+    yaw = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+    def slab(top, width, depth, thick=0.04, rotation=np.eye(3), x=1.0):
+        return Cuboid([x, 1.0, top - thick / 2], [width / 2, depth / 2, thick / 2], rotation)
+
+    step = slab(0.24, 1.0, 0.5, rotation=yaw)  # 0.5 m2, top 24 cm up
+    seat = slab(0.27, 1.0, 0.8)
+    small = slab(0.1, 0.7, 0.7)  # 0.49 m2
+    thick = slab(0.2, 1.0, 1.0, thick=0.15)
+    upright = Cuboid([1.0, 1.0, 0.12], [0.5, 0.02, 0.12], np.eye(3))
+    far = slab(0.1, 1.0, 1.0, x=4.5)  # its centre 0.5 m beyond the floor's edge: its floor is still that one
+    cuboids = [floor, step, seat, small, thick, upright, far]
+    low_slabs_are_floor(cuboids, up)
+    assert [c.kind for c in cuboids] == ["floor", "floor", "object", "object", "object", "object", "floor"]
+    assert (LOW_SLAB_TOP_M, LOW_SLAB_AREA_M2) == (0.25, 0.5)
+    lone = slab(0.1, 1.0, 1.0)
+    low_slabs_are_floor([lone], up)  # no floor to stand on
+    assert lone.kind == "object"
+    # a table top taken for a floor (a bare cloud's) does not make the table beside it floor: the slab's
+    # top is measured from the lowest floor
+    taken = Cuboid([2.7, 1.0, 0.7], [0.5, 0.5, 0.02], np.eye(3), kind="floor")
+    table = slab(0.72, 1.0, 1.0, x=2.0)
+    low_slabs_are_floor([taken, floor, table], up)
+    assert table.kind == "object"
+    # up along +x
+    on_side = Cuboid([0.1, 1.0, 1.0], [0.02, 0.5, 0.5], np.eye(3))
+    side_floor = Cuboid([-0.02, 1.5, 2.0], [0.02, 1.5, 2.0], np.eye(3), kind="floor")
+    low_slabs_are_floor([side_floor, on_side], np.array([1.0, 0.0, 0.0]))
+    assert on_side.kind == "floor"
