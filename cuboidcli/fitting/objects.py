@@ -9,11 +9,12 @@ groups, after the fit, without changing the cuboids:
 1. The candidate points are the fitting points that are not the room's shell: not inliers of a floor, wall
    or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of one, and above the floor under them
    (:func:`floor_heights`).
-2. Seeds: the inliers of each object cuboid, split into the pieces that touch (neighbours within
-   :data:`SEED_REACH` voxel cells). One cuboid laid over two tables gives two seeds; pieces of fewer than
-   :data:`MIN_SEED_POINTS` points are no seed.
-3. Every other candidate point joins the seed nearest to it through touching points (a breadth-first
-   growth, at most :data:`GROW_LIMIT_M`): legs join their table top, a chair's back its seat.
+2. Seeds: the inliers of each object cuboid, split into the pieces that touch closely (points at most
+   :data:`SEED_REACH` voxels apart along every axis). One cuboid laid over two tables gives two seeds;
+   pieces of fewer than :data:`MIN_SEED_POINTS` points are no seed.
+3. Every other candidate point joins the seed nearest to it through touching points (at most
+   :data:`REACH` voxels apart along every axis; a breadth-first growth, at most :data:`GROW_LIMIT_M`):
+   legs join their table top, a chair's back its seat.
 4. Candidate points no seed reaches form objects of their own when they hold at least
    :data:`MIN_OBJECT_POINTS` points (a bag or a ball that no cuboid explains).
 5. Each group's box is upright (its vertical axis the room's up), turned to the yaw of its cuboid (of its
@@ -56,15 +57,17 @@ from cuboidcli.fitting.not_objects import (
     wall_coloured,
 )
 from cuboidcli.fitting.seats import is_level_slab, nearest_piece, pieces_inside
-from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
+from cuboidcli.geometry.graph import components, grow_labels, touching_pairs
 from cuboidcli.geometry.gravity import level_frame
 
-#: Points touch when their voxel cells are at most this many cells apart along every axis (2 bridges the
-#: one-voxel gaps of thin legs and sparse far surfaces).
-REACH = 2
-#: A cuboid's inliers are split into pieces whose points touch more closely: cells at most this many apart
-#: (two table tops a hand apart are two pieces).
-SEED_REACH = 1
+#: Points touch when they lie at most this many voxels apart along every axis (the fitting points are voxel
+#: means: 2.75 bridges the one-voxel gaps of thin legs and sparse far surfaces). A distance, not cells of a
+#: grid: with cells, whether two points touched depended on where the grid started, and moving that start
+#: by part of a cell moved the precision of the real scans by up to 2.4 points (docs/scenes.md).
+REACH = 2.75
+#: A cuboid's inliers are split into pieces whose points touch more closely: at most this many voxels apart
+#: along every axis (two table tops a hand apart are two pieces).
+SEED_REACH = 1.5
 #: A touching piece of a cuboid's inliers seeds an object from this many fitting points on.
 MIN_SEED_POINTS = 8
 #: A group of points (seeded or not) is an object from this many fitting points on.
@@ -271,10 +274,10 @@ def group_objects(
     if n == 0:
         return []
     lab = labels[idx]
-    pairs = neighbour_pairs(points[idx], voxel_m, REACH)
+    pairs = touching_pairs(points[idx], REACH * voxel_m)
 
     # seeds: touching pieces of each object cuboid's inliers
-    close = neighbour_pairs(points[idx], voxel_m, SEED_REACH)
+    close = touching_pairs(points[idx], SEED_REACH * voxel_m)
     same = (lab[close[:, 0]] == lab[close[:, 1]]) & (lab[close[:, 0]] >= 0)
     piece = components(n, close[same])
     group = np.full(n, -1, dtype=np.int64)

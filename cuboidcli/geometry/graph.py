@@ -42,6 +42,18 @@ def neighbour_pairs(points: np.ndarray, cell_m: float, reach: int = 1) -> np.nda
     return np.sort(pairs, axis=1)
 
 
+def touching_pairs(points: np.ndarray, radius_m: float) -> np.ndarray:
+    """(E, 2) int64 index pairs (i, j), i < j, of the points (N, 3) that lie at most ``radius_m`` apart along
+    every axis; each pair once. Unlike :func:`neighbour_pairs` this does not depend on where a grid of cells
+    starts: moving one point changes only its own pairs."""
+    p = np.asarray(points, dtype=np.float64)
+    pairs = neighbour_pairs(p, radius_m, 1)  # every pair that close lies in cells at most one apart
+    if len(pairs) == 0:
+        return pairs
+    gap = np.abs(p[pairs[:, 0]] - p[pairs[:, 1]]).max(axis=1)
+    return pairs[gap <= radius_m]
+
+
 def _ranks(count: np.ndarray) -> np.ndarray:
     """0..count[k]-1 for every k, concatenated."""
     total = int(count.sum())

@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs
+from cuboidcli.geometry.graph import components, grow_labels, neighbour_pairs, touching_pairs
 
 
 @pytest.mark.parametrize("reach", [1, 2])
@@ -24,6 +24,26 @@ def test_neighbour_pairs_equal_brute_force(reach):
         if np.abs(keys[i] - keys[j]).max() <= reach
     }
     assert got == want and len(want) > 300
+
+
+@pytest.mark.parametrize("radius", [0.05, 0.0875, 0.1375])
+def test_touching_pairs_equal_brute_force_wherever_the_points_lie(radius):
+    """Pairs at most ``radius`` apart along every axis, whatever grid the search uses: shifting all points
+    by part of a radius gives the same pairs (a grid of cells would not)."""
+    rng = np.random.default_rng(1)
+    pts = rng.uniform(0, 0.5, (300, 3))
+    pts[:20] = pts[20:40] + 0.001
+    pts[40] = pts[41] + [radius, 0.0, 0.0]  # exactly at the bound: touching
+    pts[42] = pts[43] + [0.0, radius * 1.001, 0.0]  # just beyond it
+    gap = np.abs(pts[:, None] - pts[None]).max(axis=2)
+    want = {(i, j) for i, j in itertools.combinations(range(len(pts)), 2) if gap[i, j] <= radius}
+    assert {tuple(p) for p in touching_pairs(pts, radius)} == want
+    assert (40, 41) in want and (42, 43) not in want
+    for shift in (0.3, 0.55):  # a point beyond the lowest corner moves where the search's cells start
+        extra = np.concatenate([pts, [pts.min(0) - shift * radius]])
+        got = {tuple(p) for p in touching_pairs(extra, radius) if p[1] < len(pts)}
+        assert got == want
+    assert touching_pairs(np.zeros((0, 3)), 0.1).shape == (0, 2)
 
 
 def test_components_and_empty_graphs():
