@@ -228,6 +228,14 @@ TARGETS = (
     Target("nested", "cuboidcli/fitting/nested.py", None, ("tests/fitting/test_nested.py",)),
     # a room's outline from above, and the share of a box beyond it
     Target("plan", "cuboidcli/geometry/plan.py", None, ("tests/geometry/test_plan.py",)),
+    # the rules that change a fitted room's kinds: low walls are furniture, boxes beyond the outline walls,
+    # low level slabs floor
+    Target(
+        "room_rules",
+        "cuboidcli/fitting/room.py",
+        ("low_walls_are_furniture", "beyond_the_room_is_wall", "low_slabs_are_floor"),
+        ("tests/fitting/test_room_fit.py", "-k", "slab or wall or beyond"),
+    ),
 )
 
 #: Operator swaps: each binary operator / comparison / boolean operator to its "most wrong" neighbour.

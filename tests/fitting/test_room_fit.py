@@ -371,6 +371,11 @@ def test_a_low_level_slab_is_floor():
     low_slabs_are_floor(cuboids, up)
     assert [c.kind for c in cuboids] == ["floor", "floor", "object", "object", "object", "object", "floor"]
     assert (LOW_SLAB_TOP_M, LOW_SLAB_AREA_M2) == (0.25, 0.5)
+    # heights count from the floor, not from the frame's origin: the same room 1 m higher
+    high_floor = Cuboid([2.0, 1.5, 0.98], [2.0, 1.5, 0.02], np.eye(3), kind="floor")
+    high_step, high_seat = slab(1.24, 1.0, 0.5), slab(1.27, 1.0, 0.8)
+    low_slabs_are_floor([high_floor, high_step, high_seat], up)
+    assert (high_step.kind, high_seat.kind) == ("floor", "object")
     lone = slab(0.1, 1.0, 1.0)
     low_slabs_are_floor([lone], up)  # no floor to stand on
     assert lone.kind == "object"

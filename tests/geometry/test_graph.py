@@ -44,6 +44,8 @@ def test_touching_pairs_equal_brute_force_wherever_the_points_lie(radius):
         got = {tuple(p) for p in touching_pairs(extra, radius) if p[1] < len(pts)}
         assert got == want
     assert touching_pairs(np.zeros((0, 3)), 0.1).shape == (0, 2)
+    # two points in neighbouring cells but farther apart than the radius: no pair
+    assert touching_pairs(np.array([[0.0, 0.0, 0.0], [0.15, 0.0, 0.0]]), 0.1).shape == (0, 2)
 
 
 def test_components_and_empty_graphs():
