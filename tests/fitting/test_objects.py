@@ -308,3 +308,33 @@ def test_standing_on_unseen_legs_is_measured_from_the_floor_under_the_box():
     assert bottoms[(0,)] == base and bottoms[(2, 3)] == base and bottoms[(4,)] > base + 0.7
     unseeded = sorted(round(float(_extent(o.box)[0][2]), 3) for o in objects if not o.cuboids)
     assert len(unseeded) == 2 and unseeded[0] == base and unseeded[1] > base + 0.55
+
+
+def test_the_groups_do_not_depend_on_where_the_points_start():
+    """A bag 2.6 voxels beside a table's legs touches them (points at most REACH voxels apart). Counted in
+    cells of a grid, whether they touched depended on where the grid started, and so on a stray point
+    anywhere in the room; by distance the same objects come out wherever it lies."""
+    from cuboidcli.fitting.objects import REACH
+
+    floor = _grid((0, 0, 0), (3, 3, 0))
+    top, legs = _table(0.5, 0.5)
+    gap = 2.6 * VOXEL
+    bag = _grid((1.48 + gap, 0.5, 0.1), (1.8, 1.1, 0.4))
+    pts = np.concatenate([floor, top, legs, bag])
+    labels = np.concatenate(
+        [np.zeros(len(floor)), np.ones(len(top)), np.full(len(legs) + len(bag), -1)]
+    ).astype(np.int32)
+    cuboids = [
+        Cuboid([1.5, 1.5, -0.02], [1.5, 1.5, 0.02], np.eye(3), kind="floor"),
+        Cuboid([1.0, 0.8, 0.75], [0.5, 0.3, 0.005], np.eye(3), kind="object"),
+    ]
+    assert 2.6 < REACH
+    found = []
+    for shift in (0.0, 0.3, 0.6, 0.9):  # a stray point where the candidates' lowest corner was
+        stray = np.array([[0.45 - shift * VOXEL, 0.45 - shift * VOXEL, 1.2]])
+        objects = group_objects(
+            np.concatenate([pts, stray]), np.concatenate([labels, [-1]]).astype(np.int32), cuboids, UP, VOXEL
+        )
+        found.append(sorted(tuple(np.round(_extent(o.box)[1], 3)) for o in objects))
+    assert len(found[0]) == 1  # the table with its legs and the bag beside them
+    assert all(f == found[0] for f in found)
