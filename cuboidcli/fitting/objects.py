@@ -26,7 +26,8 @@ groups, after the fit, without changing the cuboids:
 6. Each object gets a score in [0, 1], how sure the grouping is that the box holds one object
    (:func:`object_score`); detection-style evaluations rank the boxes by it.
 7. Boxes that are the wall's own (:func:`~cuboidcli.fitting.not_objects.on_wall`; thicker ones flat
-   against a wall when they have its colour, :func:`~cuboidcli.fitting.not_objects.wall_coloured`),
+   against a wall when they have its colour, :func:`~cuboidcli.fitting.not_objects.wall_coloured`, unless
+   they stand on the floor at a door's size, :func:`~cuboidcli.fitting.not_objects.door_panel`),
    boxes high in the room (:func:`~cuboidcli.fitting.not_objects.high_up`: low-scored ones, and ones
    no cuboid seeded above a door's top) and flat patches of floor
    that the floor's cuboids missed (:func:`~cuboidcli.fitting.not_objects.is_floor_patch`) are left out, and
@@ -49,6 +50,7 @@ from cuboidcli.fitting.basins import object_basins
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.fitting.nested import join_nested
 from cuboidcli.fitting.not_objects import (
+    door_panel,
     floor_to_ceiling,
     high_up,
     is_bent_floor,
@@ -373,7 +375,10 @@ def group_objects(
         high = high_up(float(lo[2] - floor_z), score, bool(parts))
         heights = q[members, 2] - under_q[members]
         flat = is_floor_patch(heights, float(hi[2] - floor_z)) or is_bent_floor(q[members], heights)
-        wall_piece = on_wall(box, walls, z) or wall_coloured(box, colors, idx[members], walls, wall_colour)
+        size = hi - lo
+        door = door_panel(float(max(size[0], size[1])), float(size[2]), float(lo[2] - floor_z))
+        painted = not door and wall_coloured(box, colors, idx[members], walls, wall_colour)
+        wall_piece = on_wall(box, walls, z) or painted
         if flat or high or wall_piece or floor_to_ceiling(float(hi[2] - lo[2]), floor_z, cuboids, z):
             continue
         if lo[2] > floor_z and _stands_on_legs(group[members], seeds, ceiling, lo, hi, floor_z):
