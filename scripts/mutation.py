@@ -218,6 +218,7 @@ TARGETS = (
                 "tests/fitting/test_objects.py",
                 "tests/fitting/test_objects_edges.py",
                 "tests/fitting/test_high_up.py",
+                "tests/fitting/test_door_panel.py",
             ),
         )
         for name in ("objects", "not_objects")
