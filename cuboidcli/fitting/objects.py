@@ -48,6 +48,7 @@ import numpy as np
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.basins import object_basins
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
+from cuboidcli.fitting.doors import door_walls
 from cuboidcli.fitting.nested import join_nested
 from cuboidcli.fitting.not_objects import (
     door_panel,
@@ -271,10 +272,14 @@ def group_objects(
     keep = ~np.isin(labels, shell) & (level[:, 2] > under + SHELL_CLEARANCE * voxel_m)
     for i in shell:
         keep &= _outside_distance(points, cuboids[i]) > SHELL_CLEARANCE * voxel_m
+    doors = [  # before the candidates: a door's slab is the shell's (cuboidcli.fitting.doors)
+        SceneObject(box, (i,), len(local), object_score(local, lo, hi, voxel_m, True))
+        for i, box, local, lo, hi in door_walls(level, labels, cuboids, R, under, colors)
+    ]
     idx = np.flatnonzero(keep)
     n = len(idx)
     if n == 0:
-        return []
+        return doors
     lab = labels[idx]
     pairs = touching_pairs(points[idx], REACH * voxel_m)
 
@@ -389,5 +394,6 @@ def group_objects(
         for b_lo, b_hi, low in object_basins(q, q[:, 2] - under_q, members, turn, lo, hi, voxel_m):
             sink = Cuboid(rotation @ ((b_lo + b_hi) / 2), (b_hi - b_lo) / 2, rotation, kind="object")
             objects.append(SceneObject(sink, (), len(low), object_score(low, b_lo, b_hi, voxel_m, False)))
+    objects += doors
     objects.sort(key=lambda o: -o.points)
     return objects
