@@ -59,8 +59,9 @@ def test_a_door_sized_slab_beside_a_wall_in_another_colour_is_a_door():
     assert index == 1 and len(local) == 200
     corners = box.corners()
     # along the wall and up: the slab's extent from the floor; across: grown from 4 cm to 10 cm
-    np.testing.assert_allclose(corners.min(0), [2.55, 3.99 - DOOR_DEPTH_M / 2, 0.0], atol=1e-9)
-    np.testing.assert_allclose(corners.max(0), [3.45, 3.99 + DOOR_DEPTH_M / 2, 1.4], atol=1e-9)
+    assert DOOR_DEPTH_M == 0.1
+    np.testing.assert_allclose(corners.min(0), [2.55, 3.94, 0.0], atol=1e-9)
+    np.testing.assert_allclose(corners.max(0), [3.45, 4.04, 1.4], atol=1e-9)
     np.testing.assert_allclose(hi - lo, box.half_size * 2, atol=1e-12)
     assert np.all(local >= lo - 1e-9) and np.all(local <= hi + 1e-9)
 
@@ -108,8 +109,9 @@ def test_only_a_slab_of_a_doors_size_on_the_floor(half, z, found):
 
 
 def test_the_larger_wall_must_be_beside_it():
-    near = Cuboid([3.0, 3.99 - DOOR_WALL_GAP_M + 0.02, 0.7], [0.45, 0.02, 0.7], np.eye(3))
-    far = Cuboid([3.0, 3.99 - DOOR_WALL_GAP_M - 0.02, 0.7], [0.45, 0.02, 0.7], np.eye(3))
+    assert DOOR_WALL_GAP_M == 0.3  # from the wall's centre (y = 4) to the slab's
+    near = Cuboid([3.0, 3.72, 0.7], [0.45, 0.02, 0.7], np.eye(3))
+    far = Cuboid([3.0, 3.68, 0.7], [0.45, 0.02, 0.7], np.eye(3))
     assert len(_doors(*_room(near))) == 1 and len(_doors(*_room(far))) == 0
     # past the wall's end (x = 4) by less and by more than its own width (0.9 m)
     assert len(_doors(*_room(Cuboid([4.85, 3.99, 0.7], [0.45, 0.02, 0.7], np.eye(3))))) == 1
@@ -120,6 +122,30 @@ def test_the_larger_wall_must_be_beside_it():
     # the wall beside it must be the larger
     small = Cuboid(WALL.center, [0.4, 0.02, 0.6], np.eye(3), kind="wall")
     assert len(_doors(*_room(DOOR, wall=small))) == 0
+    long_low = Cuboid([3.0, 4.0, 1.8], [1.0, 0.02, 0.3], np.eye(3), kind="wall")  # 0.6 m^2 against 1.26
+    assert len(_doors(*_room(DOOR, wall=long_low))) == 0
+    level = Cuboid([2.0, 4.0, 1.25], [2.0, 1.25, 0.02], np.eye(3), kind="wall")  # large, but not upright
+    assert len(_doors(*_room(DOOR, wall=level))) == 0
+
+
+def test_the_nearest_larger_wall_gives_the_colour():
+    """Two larger walls beside the door: the white one in its plane and a wooden one 25 cm behind it; the
+    door is told from the nearer."""
+    pts, lab, cuboids, colors = _room(DOOR)
+    behind = Cuboid([2.0, 3.74, 1.25], [2.0, 0.02, 1.25], np.eye(3), kind="wall")
+    extra = np.array([[0.2 + 0.06 * i, 3.76, 2.0] for i in range(60)])
+    pts2 = np.concatenate([pts, extra])
+    lab2 = np.concatenate([lab, np.full(60, 3)]).astype(np.int32)
+    colors2 = np.concatenate([colors, np.tile(WOOD, (60, 1))])
+    assert len(_doors(pts2, lab2, [*cuboids, behind], colors2)) == 1
+    wood_near = colors2.copy()
+    wood_near[lab2 == 0], wood_near[lab2 == 3] = WOOD, WHITE
+    assert len(_doors(pts2, lab2, [*cuboids, behind], wood_near)) == 0
+
+
+def _about_x(deg: float) -> np.ndarray:
+    c, s = math.cos(math.radians(deg)), math.sin(math.radians(deg))
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def test_a_door_needs_its_inliers_and_an_upright_slab():
@@ -127,6 +153,35 @@ def test_a_door_needs_its_inliers_and_an_upright_slab():
     assert len(_doors(*_room(DOOR, n_door=DOOR_MIN_POINTS - 1))) == 0
     tipped = Cuboid([3.0, 3.0, 0.7], [0.45, 0.7, 0.02], np.eye(3))  # level: its thin axis up
     assert len(_doors(*_room(tipped))) == 0
+    # its normal 10 and 13 degrees out of level (sin 11.5 degrees = 0.2)
+    assert len(_doors(*_room(Cuboid(DOOR.center, DOOR.half_size, _about_x(10))))) == 1
+    assert len(_doors(*_room(Cuboid(DOOR.center, DOOR.half_size, _about_x(13))))) == 0
+    # the wall leaning with it: parallel, but both 13 degrees out of upright
+    leaning = Cuboid(WALL.center, WALL.half_size, _about_x(13), kind="wall")
+    assert len(_doors(*_room(Cuboid(DOOR.center, DOOR.half_size, _about_x(13)), wall=leaning))) == 0
+    assert len(_doors(*_room(Cuboid(DOOR.center, DOOR.half_size, _about_x(10)), wall=leaning))) == 0
+
+
+def test_a_room_with_another_up_and_a_higher_floor():
+    """The same room with y up instead of z (turned -90 degrees about x) and its floor 1 m higher: the same
+    door, its box turned alike, from the floor at 1 m."""
+    pts, lab, cuboids, colors = _room(DOOR)
+    T = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])  # (x, y, z) -> (x, z, -y)
+    up = T @ UP
+    lift = up * 1.0
+    moved = [Cuboid(T @ c.center + lift, c.half_size, T @ c.rotation, kind=c.kind) for c in cuboids]
+    R = level_frame(up)
+    level = (pts @ T.T + lift) @ R
+    (door,) = door_walls(level, lab, moved, R, np.full(len(pts), 1.0), colors)  # the floor 1 m up
+    (plain,) = _doors(pts, lab, cuboids, colors)
+    np.testing.assert_allclose(door[1].center, T @ plain[1].center + lift, atol=1e-9)
+    np.testing.assert_allclose(door[1].half_size, plain[1].half_size, atol=1e-9)
+    heights = door[1].corners() @ up
+    np.testing.assert_allclose([heights.min(), heights.max()], [1.0, 2.4], atol=1e-9)
+    short = Cuboid([3.0, 3.99, 0.5905], [0.45, 0.02, 0.5905], np.eye(3))  # 1.181 m tall: no door
+    pts, lab, cuboids, colors = _room(short)
+    moved = [Cuboid(T @ c.center + lift, c.half_size, T @ c.rotation, kind=c.kind) for c in cuboids]
+    assert door_walls((pts @ T.T + lift) @ R, lab, moved, R, np.full(len(pts), 1.0), colors) == []
 
 
 def test_a_turned_room_gives_the_same_door():
