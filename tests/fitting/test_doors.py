@@ -201,3 +201,15 @@ def test_the_room_grouping_lists_the_door_with_its_cuboid():
     (door,) = [o for o in objects if o.cuboids == (1,)]
     assert door.points == 200 and 0.0 < door.score <= 1.0
     assert not [o for o in group_objects(pts, lab, cuboids, UP, VOXEL) if o.cuboids == (1,)]
+
+
+def test_the_door_comes_with_the_rooms_other_objects_largest_first():
+    """A crate of 343 unexplained points in the middle of the room: two objects, the crate first."""
+    pts, lab, cuboids, colors = _room(DOOR)
+    g = np.arange(7) * VOXEL
+    crate = np.stack(np.meshgrid(g + 1.5, g + 1.5, g + 0.1, indexing="ij"), -1).reshape(-1, 3)
+    pts = np.concatenate([pts, crate])
+    lab = np.concatenate([lab, np.full(len(crate), -1)]).astype(np.int32)
+    colors = np.concatenate([colors, np.tile(WOOD, (len(crate), 1))])
+    objects = group_objects(pts, lab, cuboids, UP, VOXEL, colors)
+    assert [(o.cuboids, o.points) for o in objects] == [((), 343), ((1,), 200)]
