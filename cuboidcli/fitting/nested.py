@@ -19,6 +19,10 @@ precision 77.2 / 73.6 / 71.7 -> 77.5 / 73.9 / 72.0 % (docs/scenes.md). Without t
 group's points precision rose further (76.9 / 74.9 / 74.0 %, sequences 78.0 / 74.3 / 72.4 %), but by
 fragments: 2-4 more boxes a scan, most of them scraps of 20-50 points on one labelled object (a cushion
 of a sofa, the shadowed side of a cabinet), which a user counts as one object broken up.
+
+A smaller group that touches a larger group's box from below (:func:`join_under`) is its part too: a chair's
+base under its seat, the frame under a table's top, when the scan saw too few points between them for the
+two to touch. Standing on the floor under a larger box's bottom and touching it means being held up by it.
 """
 
 from __future__ import annotations
@@ -32,6 +36,15 @@ MERGE_COLOUR = 40.0
 #: ... when the smaller holds at least this many fitting points: a smaller piece of another colour (a
 #: cushion, a handle, a shadowed side) is a part of the larger object, and kept apart it is a fragment.
 OWN_POINTS = 100
+
+#: A group joins a larger one (:func:`join_under`) when its top lies within this distance (m) of the larger
+#: box's bottom, below or above it, and its bottom lies lower than that box's bottom ...
+UNDER_GAP_M = 0.1
+#: ... and at least this share of its footprint lies under the larger box's footprint. On the 10 real
+#: ScanNet scans (the saved fits of seeds 0-4, grouped again) recall at IoU 0.25 63.6 -> 64.5 % (mean of the
+#: seeds), precision 74.2 -> 74.2 %, about one object box fewer a scan; the sequences rendered from them
+#: recall 57.5 -> 57.7 %, precision 74.7 -> 74.7 % (docs/scenes.md).
+UNDER_FOOTPRINT = 0.5
 
 Box = tuple[list[float], list[float], float]
 
@@ -73,6 +86,35 @@ def join_nested(
                 if common >= overlap * min(vol_a, vol_b) and same_colour(a, b):
                     groups[a] = np.concatenate([groups[a], groups.pop(b)])
                     colours.pop(a, None)
+                    forget(a, b)
+                    merged = True
+                    break
+            if merged:
+                break
+
+
+def join_under(
+    groups: dict[int, np.ndarray], box_of: Callable[[int, int], Box], forget: Callable[[int, int], None]
+) -> None:
+    """Join, in place, each group of ``groups`` whose box touches a larger group's box from below: its top
+    within :data:`UNDER_GAP_M` of that box's bottom, its bottom lower than it, and at least
+    :data:`UNDER_FOOTPRINT` of its footprint under that box's (``box_of`` and ``forget`` as in
+    :func:`join_nested`; larger means the larger box). Largest first, until nothing joins."""
+    merged = True
+    while merged:
+        merged = False
+        order = sorted(groups, key=lambda g: -box_of(g, g)[2])
+        for i, a in enumerate(order):
+            lo_a, hi_a, _ = box_of(a, a)
+            for b in order[i + 1 :]:
+                lo_b, hi_b, _ = box_of(b, a)  # the smaller group in a's heading
+                if lo_b[2] >= lo_a[2] or abs(hi_b[2] - lo_a[2]) > UNDER_GAP_M:
+                    continue
+                common = 1.0
+                for k in range(2):
+                    common *= max(min(hi_a[k], hi_b[k]) - max(lo_a[k], lo_b[k]), 0.0)
+                if common >= UNDER_FOOTPRINT * (hi_b[0] - lo_b[0]) * (hi_b[1] - lo_b[1]):
+                    groups[a] = np.concatenate([groups[a], groups.pop(b)])
                     forget(a, b)
                     merged = True
                     break

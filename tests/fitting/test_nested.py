@@ -6,7 +6,14 @@ from __future__ import annotations
 import numpy as np
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.nested import MERGE_COLOUR, OWN_POINTS, join_nested
+from cuboidcli.fitting.nested import (
+    MERGE_COLOUR,
+    OWN_POINTS,
+    UNDER_FOOTPRINT,
+    UNDER_GAP_M,
+    join_nested,
+    join_under,
+)
 from cuboidcli.fitting.objects import group_objects
 from tests.fitting.test_objects import VOXEL, _grid
 
@@ -115,3 +122,89 @@ def test_a_stool_under_a_table_is_its_own_object_when_its_colour_differs():
         corners.max(0), [1.15 + VOXEL / 2, 0.95 + VOXEL / 2, 0.45 + VOXEL / 2], atol=1e-6
     )
     assert len(group_objects(pts, labels, cuboids, UP, VOXEL)) == 1  # without colours nothing tells
+
+
+def _under(extents):
+    """join_under over groups with the given boxes ({group: (lo, hi)}), 100 points each; a joined group's
+    box spans the boxes of the groups it holds."""
+    groups = {g: np.arange(100 * g, 100 * (g + 1)) for g in extents}
+
+    def box_of(g, h):
+        held = sorted({int(i) // 100 for i in groups[g]})
+        lo = np.min([extents[k][0] for k in held], axis=0)
+        hi = np.max([extents[k][1] for k in held], axis=0)
+        return lo.tolist(), hi.tolist(), float(np.prod(hi - lo))
+
+    forgotten = []
+    join_under(groups, box_of, lambda a, b: forgotten.append((a, b)))
+    return groups, forgotten
+
+
+SEAT = ((0.0, 0.0, 0.4), (0.6, 0.6, 0.9))  # a chair's seat and back, its base unseen
+
+
+def test_a_group_touching_a_larger_box_from_below_joins_it():
+    for top in (0.305, 0.35, 0.4, 0.495):  # within UNDER_GAP_M of the seat's bottom, below or above it
+        groups, forgotten = _under({0: SEAT, 1: ((0.2, 0.2, 0.0), (0.4, 0.4, top))})
+        assert list(groups) == [0] and forgotten == [(0, 1)], top
+        assert sorted(groups[0].tolist()) == list(range(200))
+    for top in (0.295, 0.505):
+        groups, forgotten = _under({0: SEAT, 1: ((0.2, 0.2, 0.0), (0.4, 0.4, top))})
+        assert sorted(groups) == [0, 1] and forgotten == [], top
+
+
+def test_a_group_joins_from_below_only_under_half_the_larger_footprint():
+    assert UNDER_GAP_M == 0.1 and UNDER_FOOTPRINT == 0.5
+    for x0, joins in ((0.45, True), (0.495, True), (0.505, False), (0.7, False)):  # 0.2 wide, x up to 0.6
+        groups, _ = _under({0: SEAT, 1: ((x0, 0.2, 0.0), (x0 + 0.2, 0.4, 0.38))})
+        assert (sorted(groups) == [0]) is joins, x0
+
+
+def test_what_stands_on_or_beside_a_box_stays_its_own():
+    cases = [
+        ((0.2, 0.2, 0.4), (0.4, 0.4, 0.45)),  # its bottom no lower than the larger box's
+        ((0.2, 0.2, 0.9), (0.4, 0.4, 1.2)),  # on top
+        ((0.2, 0.2, 0.0), (0.4, 0.4, 0.8)),  # beside it, as tall
+    ]
+    for box in cases:
+        groups, _ = _under({0: SEAT, 1: box})
+        assert sorted(groups) == [0, 1], box
+    # a larger box below a smaller one: the small one lies on it, the larger one holds it up
+    groups, _ = _under({0: ((0.2, 0.2, 0.4), (0.4, 0.4, 0.6)), 1: ((0.0, 0.0, 0.0), (0.6, 0.6, 0.38))})
+    assert sorted(groups) == [0, 1]
+
+
+def test_pieces_under_pieces_join_in_turn():
+    groups, forgotten = _under(
+        {0: SEAT, 1: ((0.1, 0.1, 0.2), (0.5, 0.5, 0.38)), 2: ((0.2, 0.2, 0.0), (0.4, 0.4, 0.25))}
+    )
+    assert list(groups) == [0] and len(groups[0]) == 300 and forgotten == [(0, 1), (0, 2)]
+
+
+def _chair():
+    """A floor (cuboid 0), a chair's seat and back (cuboid 1) and its pedestal, seeded by a cuboid of its own
+    (2), 5 cm under the seat."""
+    floor = _grid((-0.5, -0.5, 0), (1.0, 1.0, 0))
+    seat = _grid((0.0, 0.0, 0.45), (0.5, 0.5, 0.45))
+    back = _grid((0.0, 0.5, 0.45 + VOXEL), (0.5, 0.5, 0.9))
+    pedestal = _grid((0.22, 0.22, 0.06), (0.28, 0.28, 0.4))
+    pts = np.concatenate([floor, seat, back, pedestal])
+    labels = np.concatenate(
+        [np.zeros(len(floor)), np.ones(len(seat) + len(back)), np.full(len(pedestal), 2)]
+    ).astype(np.int32)
+    cuboids = [
+        Cuboid([0.25, 0.25, -0.02], [0.75, 0.75, 0.02], np.eye(3), kind="floor"),
+        Cuboid([0.25, 0.25, 0.675], [0.25, 0.25, 0.225], np.eye(3), kind="object"),
+        Cuboid([0.25, 0.25, 0.23], [0.03, 0.03, 0.17], np.eye(3), kind="object"),
+    ]
+    return pts, labels, cuboids
+
+
+def test_a_chair_and_its_pedestal_are_one_object():
+    pts, labels, cuboids = _chair()
+    (chair,) = group_objects(pts, labels, cuboids, UP, VOXEL)
+    assert chair.cuboids == (1, 2)
+    corners = chair.box.corners()
+    np.testing.assert_allclose(corners.min(0), [-VOXEL / 2, -VOXEL / 2, 0.0], atol=1e-6)  # on the floor
+    top = pts[labels == 1].max(0) + VOXEL / 2  # the back's corner, 0.49 / 0.5 / 0.87 m
+    np.testing.assert_allclose(corners.max(0), top, atol=1e-6)
