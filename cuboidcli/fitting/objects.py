@@ -64,10 +64,9 @@ from cuboidcli.fitting.seats import is_level_slab, nearest_piece, pieces_inside
 from cuboidcli.geometry.graph import components, grow_labels, touching_pairs
 from cuboidcli.geometry.gravity import level_frame
 
-#: Points touch when they lie at most this many voxels apart along every axis (the fitting points are voxel
-#: means: 2.75 bridges the one-voxel gaps of thin legs and sparse far surfaces). A distance, not cells of a
-#: grid: with cells, whether two points touched depended on where the grid started, and moving that start
-#: by part of a cell moved the precision of the real scans by up to 2.4 points (docs/scenes.md).
+#: Points touch when they lie at most this many voxels apart along every axis (2.75 bridges the one-voxel gaps
+#: of thin legs and sparse far surfaces). A distance, not cells of a grid: with cells, where the grid started
+#: moved the real scans' precision by up to 2.4 points (docs/scenes.md).
 REACH = 2.75
 #: A cuboid's inliers are split into pieces whose points touch more closely: at most this many voxels apart
 #: along every axis (two table tops a hand apart are two pieces).
@@ -99,9 +98,8 @@ FLOOR_TOUCH = 3.0
 STAND_TOP_M = (0.4, 1.1)
 STAND_LOW_M = 0.45
 STAND_FOOT_M = 0.5
-#: The score's support term is 1 - exp(-points / SCORE_POINTS): half its weight at about 280 fitting points.
-#: On 7 real ScanNet scans (scenes 1-3) class-agnostic AP at IoU 0.25 was 18.2 % at 50, 27.5 % at 400
-#: (3 scans of scenes 4-5, chosen on nothing: 17.1 and 18.7 %).
+#: The score's support term is 1 - exp(-points / SCORE_POINTS), half its weight at about 280 fitting points
+#: (AP@25 on real ScanNet scenes 1-3: 18.2 % at 50, 27.5 % at 400; scenes 4-5, chosen on nothing: 17.1, 18.7).
 SCORE_POINTS = 400.0
 #: The score's fill term counts the occupied cells of this many voxels in the box's projections.
 SCORE_CELL = 2.0
