@@ -208,3 +208,29 @@ def test_a_chair_and_its_pedestal_are_one_object():
     np.testing.assert_allclose(corners.min(0), [-VOXEL / 2, -VOXEL / 2, 0.0], atol=1e-6)  # on the floor
     top = pts[labels == 1].max(0) + VOXEL / 2  # the back's corner, 0.49 / 0.5 / 0.87 m
     np.testing.assert_allclose(corners.max(0), top, atol=1e-6)
+
+
+def test_a_scrap_of_wall_under_a_box_joins_nothing():
+    """A wall cupboard (cuboid 2) with a strip of the wall under it, flat against the wall (cuboid 3's): the
+    strip is the wall's, left out before anything joins, so the cupboard keeps its own box."""
+    floor = _grid((0.0, 2.0, 0.0), (3.0, 4.0, 0.0))
+    wall = _grid((0.0, 4.0, 0.1), (3.0, 4.0, 2.4))
+    cupboard = np.unique(np.concatenate([
+        _grid((1.0, 3.55, 1.0), (1.6, 3.95, 1.0)), _grid((1.0, 3.55, 1.3), (1.6, 3.95, 1.3)),
+        _grid((1.0, 3.55, 1.0), (1.6, 3.55, 1.3)),
+    ]), axis=0)  # fmt: skip
+    strip = _grid((1.1, 3.935, 0.5), (1.5, 3.935, 0.95))
+    pts = np.concatenate([floor, wall, cupboard, strip])
+    labels = np.concatenate(
+        [np.zeros(len(floor)), np.ones(len(wall)), np.full(len(cupboard), 2), np.full(len(strip), 3)]
+    ).astype(np.int32)
+    cuboids = [
+        Cuboid([1.5, 3.0, -0.02], [1.5, 1.0, 0.02], np.eye(3), kind="floor"),
+        Cuboid([1.5, 4.02, 1.25], [1.5, 0.02, 1.15], np.eye(3), kind="wall"),
+        Cuboid([1.3, 3.75, 1.15], [0.3, 0.2, 0.15], np.eye(3), kind="object"),
+        Cuboid([1.3, 3.935, 0.725], [0.2, 0.005, 0.225], np.eye(3), kind="object"),
+    ]
+    (cupboard_box,) = [o.box for o in group_objects(pts, labels, cuboids, UP, VOXEL)]
+    corners = cupboard_box.corners()
+    np.testing.assert_allclose(corners.min(0)[2], 1.0 - VOXEL / 2, atol=1e-6)
+    np.testing.assert_allclose(corners.max(0)[2], 1.3 + VOXEL / 2, atol=1e-6)
