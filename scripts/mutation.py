@@ -219,6 +219,7 @@ TARGETS = (
                 "tests/fitting/test_objects_edges.py",
                 "tests/fitting/test_high_up.py",
                 "tests/fitting/test_door_panel.py",
+                "tests/fitting/test_nested.py",
             ),
         )
         for name in ("objects", "not_objects")
