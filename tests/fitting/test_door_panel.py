@@ -29,17 +29,19 @@ def _grid(lo, hi):
     return np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)
 
 
-def _room(panel: np.ndarray, panel_colour, dz: float = 0.0) -> list:
+def _room(panel: np.ndarray, panel_colour, dz: float = 0.0, dxy=(0.0, 0.0)) -> list:
     """The objects of a floor, a wall at x = 2 with 30 inliers of its colour, and ``panel`` (points off the
-    wall by more than the shell's clearance) of ``panel_colour``; all of it ``dz`` higher."""
+    wall by more than the shell's clearance) of ``panel_colour``; all of it ``dz`` higher and moved by ``dxy``
+    across the floor."""
     floor = _grid((0.0, 0.0, 0.0), (3.0, 3.0, 0.0))[::2]
     wall = np.array([[2.0, 0.1 + 0.09 * i, 2.2] for i in range(30)])
-    pts = np.concatenate([floor, wall, panel]) + [0.0, 0.0, dz]
+    shift = np.array([*dxy, dz])
+    pts = np.concatenate([floor, wall, panel]) + shift
     lab = np.concatenate([np.zeros(len(floor)), np.ones(len(wall)), np.full(len(panel), -1)]).astype(np.int32)
     colors = np.full((len(pts), 3), 20.0)
     colors[lab == 1] = WALL_COLOUR
     colors[lab == -1] = panel_colour
-    up = [Cuboid(c.center + [0.0, 0.0, dz], c.half_size, c.rotation, kind=c.kind) for c in (FLOOR, WALL)]
+    up = [Cuboid(c.center + shift, c.half_size, c.rotation, kind=c.kind) for c in (FLOOR, WALL)]
     return group_objects(pts, lab, up, UP, VOXEL, colors)
 
 
@@ -67,3 +69,5 @@ def test_a_wall_coloured_box_is_kept_when_it_has_a_doors_size(y_hi, z_lo, z_hi, 
         np.testing.assert_allclose(hi, panel.max(0) + VOXEL / 2, atol=1e-6)
     assert len(_room(panel, [120.0, 80.0, 40.0])) == 1  # a wooden front
     assert len(_room(panel, WALL_COLOUR, dz=1.0)) == int(door)  # the same room 1 m higher
+    for dxy in ((5.0, -4.0), (-5.0, 4.0)):  # and elsewhere on the floor
+        assert len(_room(panel, WALL_COLOUR, dxy=dxy)) == int(door), dxy
