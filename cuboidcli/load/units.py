@@ -14,8 +14,11 @@ from cuboidcli.io.scan import MIN_POINTS, UNITS, PointCloud
 
 __all__ = ["MAX_DIAGONAL_M", "MIN_DIAGONAL_M", "UNITS", "check_cloud", "check_unit", "in_metres"]
 
-#: Plausible bounding-box diagonals of a scene, metres (a room up to a large building floor).
-MIN_DIAGONAL_M = 0.05
+#: Plausible bounding-box diagonals of a scene, metres (a corner of a desk up to a large building floor).
+#: The lower bound catches a scan in metres read with ``--unit cm``: a room of up to 30 m across then reads
+#: as at most 30 cm (at 5 cm, ScanNet's 6.75 m scene0003_00 with ``--unit cm`` fitted 0 cuboids to 3 points,
+#: exit 0, no warning).
+MIN_DIAGONAL_M = 0.3
 MAX_DIAGONAL_M = 200.0
 _UNIT_NAMES = {"m": "metres", "cm": "centimetres", "mm": "millimetres"}
 

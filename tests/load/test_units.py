@@ -71,6 +71,8 @@ def test_implausible_scale(tmp_path):
     refused(tmp_path / "tiny.npy", "too small for a room", "check --unit (coordinates read as metres)")
     np.save(tmp_path / "metres.npy", points)
     refused(tmp_path / "metres.npy", "too small for a room", "it looks like metres: pass --unit m", unit="mm")
+    np.save(tmp_path / "room_7m.npy", points * 7.0 / np.linalg.norm(np.ptp(points, axis=0)))  # 7 m across
+    refused(tmp_path / "room_7m.npy", "70.0 mm across with --unit cm", "pass --unit m", unit="cm")
     np.save(tmp_path / "km.npy", points * 1000 * 1000)
     assert "too large for a room; check --unit" in refused(tmp_path / "km.npy")
     with pytest.raises(InputError, match="it looks like centimetres: pass --unit cm"):

@@ -21,13 +21,13 @@ def cloud_of_diagonal(diagonal: float, n: int = MIN_POINTS, normals=None) -> Poi
 
 
 def test_the_size_limits_hold_at_their_boundaries():
-    assert (MIN_DIAGONAL_M, MAX_DIAGONAL_M) == (0.05, 200.0)
+    assert (MIN_DIAGONAL_M, MAX_DIAGONAL_M) == (0.3, 200.0)
     for inside in (MIN_DIAGONAL_M * 1.0001, 5.0, MAX_DIAGONAL_M * 0.9999):
         cloud = check_cloud(cloud_of_diagonal(inside), "m")
         assert cloud.meta["diagonal_m"] == round(inside, 4) and cloud.meta["points"] == MIN_POINTS
     refused(lambda: check_cloud(cloud_of_diagonal(MAX_DIAGONAL_M * 1.001), "m"), "200 m across", "too large")
     refused(
-        lambda: check_cloud(cloud_of_diagonal(MIN_DIAGONAL_M * 0.999), "m"), "50.0 mm across", "too small"
+        lambda: check_cloud(cloud_of_diagonal(MIN_DIAGONAL_M * 0.999), "m"), "299.7 mm across", "too small"
     )
     # a small box is said in millimetres with one decimal, a large one in whole metres
     refused(lambda: check_cloud(cloud_of_diagonal(0.012449), "m"), "room.npy is 12.4 mm across with --unit m")
