@@ -19,7 +19,7 @@ from cuboidcli.cli.options import (
     fit_config,
     shown_default,
 )
-from cuboidcli.cli.renamed import prefer_new, renamed_option
+from cuboidcli.cli.renamed import prefer_new, renamed_option, warn_renamed
 from cuboidcli.cli.scale_options import (
     ray_address_option,
     ray_option,
@@ -171,7 +171,8 @@ def fit(
     A point cloud or mesh (.ply, .pcd, .obj, .glb/.gltf, .npy/.npz of points) or a posed RGB-D sequence
     folder (TUM, ScanNet, Redwood, or depth/ + pose/ + cameras.json) is fitted as one room, in its own
     frame, with up to 60 cuboids."""
-    camera = prefer_new(camera, preset, "--preset", "--camera")
+    # a command line refused for another reason gets that one line, not the deprecation warning too
+    camera = prefer_new(camera, preset, "--preset", "--camera", warn=False)
     settings = dict(
         hypotheses=hypotheses, max_cuboids=max_cuboids, sampler=sampler, solver=solver, seed=seed,
         device=device, theta=theta, grid_step=grid_step, occlusion_aware=occlusion_aware, refine=refine,
@@ -189,6 +190,8 @@ def fit(
     run = Run(workers, ray_target(workers, ray, ray_address), skip_existing)
     request = fit_request(image, depth, settings, fast, depth_model_options, intrinsics, camera, depth_scale,
                           unit, every, weights, onnx, outputs, run, _typed_options(ctx))  # fmt: skip
+    if preset is not None:
+        warn_renamed("--preset", "--camera")
     from cuboidcli.cli.fit_run import run_request
 
     with user_errors():

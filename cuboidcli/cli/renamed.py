@@ -41,20 +41,27 @@ def renamed_option(old: str, new: str | None = None, *aliases: str) -> Any:
     return typer.Option(None, old, *aliases, hidden=True, help=f"Deprecated spelling of {now}.")
 
 
-def prefer_new(new_value: Any, old_value: Any, old: str, new: str) -> Any:
+def prefer_new(new_value: Any, old_value: Any, old: str, new: str, warn: bool = True) -> Any:
     """The value to use: ``new_value`` if given, else ``old_value`` with a warning that ``old`` is now
-    spelled ``new``. Giving both is an error (exit 2)."""
+    spelled ``new`` (with ``warn`` False, the caller warns once the command line is checked:
+    :func:`warn_renamed`). Giving both is an error (exit 2)."""
     if old_value is None:
         return new_value
     if new_value is not None:
         fail(f"{old} and {new} are the same option; give only {new}")
-    console.print(f"[yellow]warning:[/] {old} is deprecated; use {new}", highlight=False, soft_wrap=True)
+    if warn:
+        warn_renamed(old, new)
     return old_value
 
 
-def renamed_value(value, default, old_value, old: str, new: str):
+def warn_renamed(old: str, new: str) -> None:
+    """The one-line warning that ``old`` is now spelled ``new``."""
+    console.print(f"[yellow]warning:[/] {old} is deprecated; use {new}", highlight=False, soft_wrap=True)
+
+
+def renamed_value(value, default, old_value, old: str, new: str, warn: bool = True):
     """The value of an option that has a default and an old spelling (:func:`renamed_option`): ``value``,
-    or the old spelling's with a one-line warning when only that was given; both given (``value`` other
-    than ``default``) is an error, as :func:`prefer_new` makes it."""
-    chosen = prefer_new(None if value == default else value, old_value, old, new)
+    or the old spelling's with a one-line warning when only that was given (``warn``, as
+    :func:`prefer_new` takes it); both given (``value`` other than ``default``) is an error."""
+    chosen = prefer_new(None if value == default else value, old_value, old, new, warn)
     return default if chosen is None else chosen

@@ -10,7 +10,7 @@ import typer
 from rich.progress import TimeElapsedColumn, TimeRemainingColumn
 
 from cuboidcli.cli.common import console, fail, progress_bar, user_errors
-from cuboidcli.cli.renamed import renamed_option, renamed_value
+from cuboidcli.cli.renamed import renamed_option, renamed_value, warn_renamed
 
 #: Folder of room scan i under OUT_DIR (``cuboids evaluate`` finds the scans by this prefix).
 SCENE_NAME = "scene_{:04d}"
@@ -92,7 +92,8 @@ def synth(
     from cuboidcli.camera import PRESETS, Camera
 
     # --camera counts as given when it is not the default: both spellings given is an error
-    camera_name = renamed_value(camera, CAMERA, preset, "--preset", "--camera")
+    # (warned once the command line is checked: a refused one gets its one line alone)
+    camera_name = renamed_value(camera, CAMERA, preset, "--preset", "--camera", warn=False)
     if count < 1:
         fail(f"--count {count}: give at least 1 frame")
     if workers < 1:
@@ -109,6 +110,8 @@ def synth(
     if w < 16 or h < 16:
         fail(f"image size {w}x{h} is too small; give --width/--height of at least 16 pixels")
     camera = base if (w, h) == (base.width, base.height) else base.scaled(w / base.width, h / base.height)
+    if preset is not None:
+        warn_renamed("--preset", "--camera")
 
     from cuboidcli.synth import SceneOptions, SensorOptions, split_of, write_dataset
 

@@ -497,6 +497,10 @@ def test_the_old_preset_spelling_still_works_and_warns(tmp_path, room_png):
     assert a == b and a["input"]["intrinsics_source"] == "preset:nyu"
     r = run("fit", "--depth", room_png, "--preset", "nyu", "--camera", "nyu", "-o", old, *FAST)
     assert r.exit_code == 2 and "give only --camera" in r.output
+    # a command line refused for another reason says that in one line, without the warning
+    r = run("fit", "--depth", room_png, "--preset", "nyu", "--unit", "cm", "-o", tmp_path / "no.json")
+    refusal = "error: --unit does not apply to a depth map or a photo; leave it out"
+    assert r.exit_code == 2 and r.output.strip().splitlines() == [refusal]
     rows = [line for line in run("fit", "--help").output.splitlines() if "│ --" in line]
     options = [row.strip("│ ").split()[0] for row in rows]
     assert "--camera" in options and "--preset" not in options

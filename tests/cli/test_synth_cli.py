@@ -134,5 +134,8 @@ def test_preset_is_the_old_spelling_of_camera(app, tmp_path):
     assert cams["000000"]["fx"] == pytest.approx(525.0 * 64 / 640)  # TUM's, not NYU's 518.86
     both = _run(app, tmp_path / "both", "-n", 1, "--width", 64, "--preset", "tum", "--camera", "scannet")
     assert both.exit_code == 2 and "give only --camera" in both.output
+    refused = _run(app, tmp_path / "refused", "-n", 0, "--preset", "tum")  # the refusal alone
+    assert refused.exit_code == 2
+    assert refused.output.strip().splitlines() == ["error: --count 0: give at least 1 frame"]
     help_text = _run(app, "--help").output
     assert "--camera" in help_text and "--preset" not in help_text
