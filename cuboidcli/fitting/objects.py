@@ -32,11 +32,12 @@ groups, after the fit, without changing the cuboids:
    cuboid seeded above a door's top), flat patches of floor the floor's cuboids missed
    (:func:`~cuboidcli.fitting.not_objects.is_floor_patch`) and boxes from the floor to the ceiling
    (:func:`~cuboidcli.fitting.not_objects.floor_to_ceiling`) are left out. Then a kept box touching a larger
-   kept box from below joins it: a chair's base under its seat (:func:`~cuboidcli.fitting.nested.join_under`).
+   kept box from below joins it: a chair's base under its seat (:func:`~cuboidcli.fitting.nested.join_under`);
+   then what hangs on a wall, and would not stand on the floor, is left out
+   (:func:`~cuboidcli.fitting.not_objects.hangs_on_wall`).
 8. A sink set into an object's top gets a box of its own (:func:`~cuboidcli.fitting.basins.find_basins`).
 
-On the synthetic room scans (3 rooms, 31 objects) these boxes recall 67.7 % of the ground-truth furniture
-boxes at 3D IoU 0.25 where the parts recall 38.7 % (docs/scenes.md).
+These boxes recall most of a room's furniture at 3D IoU 0.25 where the parts recall few (docs/scenes.md).
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ from cuboidcli.fitting.nested import join_nested, join_under
 from cuboidcli.fitting.not_objects import (
     door_panel,
     floor_to_ceiling,
+    hangs_on_wall,
     high_up,
     is_bent_floor,
     is_floor_patch,
@@ -91,10 +93,8 @@ FLOOR_TOUCH = 3.0
 #: the shadow of its seat). A floating box whose top is at most STAND_TOP_M[1] above its floor is extended
 #: down to the floor when its bottom is at most :data:`STAND_LOW_M` up, or when one of its seeds is a level
 #: slab (a table top, a seat) at least :data:`STAND_FOOT_M` across with its top from STAND_TOP_M[0] up; its
-#: score stays that of what was seen. On the 10 real ScanNet scans (seeds 0-2, grouped again) recall at IoU
-#: 0.25 54.4 / 57.0 / 52.3 -> 59.1 / 59.1 / 59.1 %, precision 72.7 / 67.5 / 69.7 -> 72.7 / 66.7 / 69.4 %; the
-#: sequences rendered from them recall 44.6 / 44.6 / 43.8 -> 53.6 / 50.9 / 49.1 %; the synthetic rooms equal
-#: or higher in all 8 runs (docs/scenes.md, with the variants tried).
+#: score stays that of what was seen. On the 10 real ScanNet scans (seeds 0-2) recall at IoU 0.25 went from
+#: 52-57 % to 59 %, on the sequences rendered from them from 44-45 % to 49-54 % (docs/scenes.md).
 STAND_TOP_M = (0.4, 1.1)
 STAND_LOW_M = 0.45
 STAND_FOOT_M = 0.5
@@ -328,8 +328,7 @@ def group_objects(
     groups = {g: m for g, m in groups.items() if len(m) >= MIN_OBJECT_POINTS}
     headings = {g: heading(g) for g in groups}
     # a group's box in a heading, kept until the group changes: the merging passes ask for the same boxes
-    # again and again (thousands of times in a cluttered room)
-    # (as plain floats: thousands of pairs of 3-vectors are compared)
+    # thousands of times in a cluttered room (plain floats: thousands of pairs of 3-vectors are compared)
     known: dict[tuple[int, int], tuple[list[float], list[float], float]] = {}
 
     def box_of(g: int, h: int) -> tuple[list[float], list[float], float]:
@@ -347,8 +346,7 @@ def group_objects(
                 groups[b] = np.concatenate([groups[b], groups[a][near == k]])
             del groups[a]
             known.clear()
-    if colors is not None:
-        colors = np.asarray(colors, dtype=np.float64).reshape(-1, 3)
+    colors = None if colors is None else np.asarray(colors, dtype=np.float64).reshape(-1, 3)
 
     def forget(a: int, b: int) -> None:
         for k in [k for k in known if a in k or b in k]:
@@ -382,12 +380,14 @@ def group_objects(
                 float(max(hi[0] - lo[0], hi[1] - lo[1])), float(hi[2] - lo[2]), float(lo[2] - floor_z)
             )
             painted = not door and wall_coloured(box, colors, idx[members], walls, wall_colour)
-            wall_piece = on_wall(box, walls, z) or painted
+            legs = bool(lo[2] > floor_z) and _stands_on_legs(group[members], seeds, ceiling, lo, hi, floor_z)
+            hangs = final and not legs and hangs_on_wall(box, walls, float(lo[2] - floor_z), score)
+            wall_piece = on_wall(box, walls, z) or painted or hangs
             if flat or high or wall_piece or floor_to_ceiling(float(hi[2] - lo[2]), floor_z, cuboids, z):
                 del groups[g]
             if not final or g not in groups:
                 continue
-            if lo[2] > floor_z and _stands_on_legs(group[members], seeds, ceiling, lo, hi, floor_z):
+            if legs:
                 lo = np.array([lo[0], lo[1], floor_z])
                 box = Cuboid(rotation @ ((lo + hi) / 2), (hi - lo) / 2, rotation, kind="object")
             objects.append(SceneObject(box, tuple(sorted(parts)), len(members), score))

@@ -1,5 +1,6 @@
 """Boxes high in a room that are not furniture (:func:`cuboidcli.fitting.not_objects.high_up`): low-scored
-ones more than a metre up, and ones no cuboid explains above a door's top (a rail, a light, a moulding)."""
+ones more than a metre up, and ones no cuboid explains above a door's top (a rail, a light, a moulding); and
+what hangs on a wall (:func:`cuboidcli.fitting.not_objects.hangs_on_wall`)."""
 
 from __future__ import annotations
 
@@ -7,7 +8,17 @@ import numpy as np
 import pytest
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.not_objects import DOOR_TOP_M, HIGH_M, HIGH_SCORE, high_up
+from cuboidcli.fitting import not_objects
+from cuboidcli.fitting.not_objects import (
+    DOOR_TOP_M,
+    HANG_BOTTOM_M,
+    HANG_SCORE,
+    HANG_THIN_M,
+    HIGH_M,
+    HIGH_SCORE,
+    hangs_on_wall,
+    high_up,
+)
 from cuboidcli.fitting.objects import group_objects
 from tests.fitting.test_objects import VOXEL, _grid
 
@@ -64,3 +75,71 @@ def test_a_rail_above_the_doors_that_no_cuboid_explains_is_left_out(z, seeded, k
     if kept:
         assert out[0].points == len(rail) and out[0].score > HIGH_SCORE
         assert out[0].cuboids == ((2,) if seeded else ())
+
+
+def test_hangs_on_wall_bounds():
+    assert (HANG_THIN_M, HANG_BOTTOM_M, HANG_SCORE) == (0.3, 0.3, 0.4)
+
+    def slab(thick, off=0.0):  # a box against WALL (its face at x = 0), ``off`` clear of it, 1 m up
+        return Cuboid([off + thick / 2, 2.0, 1.25], [thick / 2, 0.4, 0.25], np.eye(3), kind="object")
+
+    assert hangs_on_wall(slab(0.3), [WALL], 1.0, 0.39)
+    assert not hangs_on_wall(slab(0.31), [WALL], 1.0, 0.39)  # thicker: a cupboard
+    assert hangs_on_wall(slab(0.2), [WALL], 0.3 + 1e-6, 0.39)
+    assert not hangs_on_wall(slab(0.2), [WALL], 0.3, 0.39)  # low: it stands
+    assert not hangs_on_wall(slab(0.2), [WALL], 1.0, 0.4)  # well filled: a cupboard seen whole
+    assert not hangs_on_wall(slab(0.2, off=0.5), [WALL], 1.0, 0.1)  # clear of the wall
+    assert not hangs_on_wall(slab(0.2), [], 1.0, 0.1)
+
+
+def _shelf(z, depth=0.25, x0=0.06):
+    """A board on the wall: a level layer of points ``depth`` deep from ``x0``, 0.8 m wide, at height z."""
+    return _grid((x0, 1.6, z), (x0 + depth, 2.4, z))
+
+
+def _back():
+    """The front face and top edge of a sofa's back 0.25 m deep, from 0.4 to 0.85 m above the floor, 0.4 m of
+    it seen."""
+    return np.concatenate(
+        [_grid((0.31, 1.8, 0.4), (0.31, 2.2, 0.85)), _grid((0.06, 1.8, 0.85), (0.28, 2.2, 0.85))]
+    )
+
+
+@pytest.mark.parametrize(
+    ("points", "kept"),
+    [
+        (_shelf(1.2), False),  # a board hung on the wall, 1.2 m up
+        (_shelf(0.6), False),  # lower down
+        (_shelf(0.6, x0=0.6), True),  # clear of the wall: a table top
+        (_shelf(1.2, depth=0.35), True),  # deeper than a thing hung on a wall
+        (_grid((0.06, 1.6, 1.2), (0.31, 2.4, 1.8)), True),  # a cupboard, its box filled: it scores
+        (_back(), True),  # low enough to stand on legs the scan missed: a sofa's back against the wall
+    ],
+)
+def test_what_hangs_on_a_wall_is_left_out(points, kept, monkeypatch):
+    pts, lab, cuboids = _room(points)
+    out = group_objects(pts, lab, cuboids, UP, VOXEL)
+    assert len(out) == int(kept)
+    if not kept:  # this rule leaves it out, not the others (the wall's thin scraps, low scores high up)
+        monkeypatch.setattr(not_objects, "HANG_SCORE", 0.0)
+        out = group_objects(pts, lab, cuboids, UP, VOXEL)
+        assert 0.0 < out[0].score < HANG_SCORE
+    assert out[0].points == len(points)
+
+
+def test_a_frame_on_a_wall_that_reaches_the_floor_stays():
+    """The upper part of a window's frame hangs on the wall, its lower part stands on the floor: the lower
+    joins the upper (:func:`~cuboidcli.fitting.nested.join_under`) before what hangs is left out, and the
+    whole frame stays, from the floor to its top."""
+    upper = np.concatenate(  # the front and back edges of a frame 0.25 m deep, from 1 m up to 1.8 m
+        [_grid((x, 1.6, z), (x, 2.4, z)) for x in (0.06, 0.31) for z in (1.0, 1.8)]
+        + [_grid((x, y, 1.0), (x, y, 1.8)) for x in (0.06, 0.31) for y in (1.6, 2.4)]
+        + [_grid((0.06, y, z), (0.31, y, z)) for y in (1.6, 2.4) for z in (1.0, 1.8)]
+    )
+    post = _grid((0.08, 1.9, 0.07), (0.29, 2.1, 0.9))  # under it, 10 cm below: its own group
+    alone = group_objects(*_room(upper), UP, VOXEL)
+    assert alone == []  # the upper part alone hangs
+    out = group_objects(*_room(upper, post), UP, VOXEL)
+    assert len(out) == 1 and out[0].points == len(upper) + len(post)
+    z = out[0].box.corners()[:, 2]
+    assert z.min() == pytest.approx(0.0) and z.max() == pytest.approx(1.8 + VOXEL / 2)
