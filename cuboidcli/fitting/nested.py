@@ -122,3 +122,23 @@ def join_under(
                     break
             if merged:
                 break
+
+
+def rests_on(g: int, groups: dict[int, np.ndarray], box_of: Callable[[int, int], Box]) -> bool:
+    """Whether group ``g``'s box rests on another group's box of ``groups``: its bottom within
+    :data:`UNDER_GAP_M` of that box's top and at least :data:`UNDER_FOOTPRINT` of its footprint over it
+    (``box_of`` as in :func:`join_nested`): a screen on a desk stands, it does not hang."""
+    lo_g, hi_g, _ = box_of(g, g)
+    area = (hi_g[0] - lo_g[0]) * (hi_g[1] - lo_g[1])
+    for b in groups:
+        if b == g:
+            continue
+        lo_b, hi_b, _ = box_of(b, g)
+        if abs(hi_b[2] - lo_g[2]) > UNDER_GAP_M:
+            continue
+        common = 1.0
+        for k in range(2):
+            common *= max(min(hi_g[k], hi_b[k]) - max(lo_g[k], lo_b[k]), 0.0)
+        if common >= UNDER_FOOTPRINT * area:
+            return True
+    return False

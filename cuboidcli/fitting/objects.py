@@ -33,8 +33,8 @@ groups, after the fit, without changing the cuboids:
    (:func:`~cuboidcli.fitting.not_objects.is_floor_patch`) and boxes from the floor to the ceiling
    (:func:`~cuboidcli.fitting.not_objects.floor_to_ceiling`) are left out. Then a kept box touching a larger
    kept box from below joins it: a chair's base under its seat (:func:`~cuboidcli.fitting.nested.join_under`);
-   then what hangs on a wall, and would not stand on the floor, is left out
-   (:func:`~cuboidcli.fitting.not_objects.hangs_on_wall`).
+   then what hangs on a wall, resting on nothing and too high to stand on legs the scan missed, is left
+   out (:func:`~cuboidcli.fitting.not_objects.hangs_on_wall`).
 8. A sink set into an object's top gets a box of its own (:func:`~cuboidcli.fitting.basins.find_basins`).
 
 These boxes recall most of a room's furniture at 3D IoU 0.25 where the parts recall few (docs/scenes.md).
@@ -51,7 +51,7 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.basins import object_basins
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.fitting.doors import door_walls
-from cuboidcli.fitting.nested import join_nested, join_under
+from cuboidcli.fitting.nested import join_nested, join_under, rests_on
 from cuboidcli.fitting.not_objects import (
     door_panel,
     floor_to_ceiling,
@@ -382,7 +382,7 @@ def group_objects(
             painted = not door and wall_coloured(box, colors, idx[members], walls, wall_colour)
             legs = bool(lo[2] > floor_z) and _stands_on_legs(group[members], seeds, ceiling, lo, hi, floor_z)
             hangs = final and not legs and hangs_on_wall(box, walls, float(lo[2] - floor_z), score)
-            wall_piece = on_wall(box, walls, z) or painted or hangs
+            wall_piece = on_wall(box, walls, z) or painted or (hangs and not rests_on(g, groups, box_of))
             if flat or high or wall_piece or floor_to_ceiling(float(hi[2] - lo[2]), floor_z, cuboids, z):
                 del groups[g]
             if not final or g not in groups:

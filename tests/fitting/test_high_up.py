@@ -143,3 +143,17 @@ def test_a_frame_on_a_wall_that_reaches_the_floor_stays():
     assert len(out) == 1 and out[0].points == len(upper) + len(post)
     z = out[0].box.corners()[:, 2]
     assert z.min() == pytest.approx(0.0) and z.max() == pytest.approx(1.8 + VOXEL / 2)
+
+
+def test_a_screen_on_a_desk_against_the_wall_stands():
+    """A screen's front and foot, low-scored and flat against the wall, hang when nothing holds them; on a
+    desk (:func:`~cuboidcli.fitting.nested.rests_on`) the screen stands and stays."""
+    screen = np.concatenate(
+        [_grid((0.3, 1.8, 0.85), (0.3, 2.2, 1.3)), _grid((0.1, 1.8, 0.85), (0.27, 2.2, 0.85))]
+    )
+    desk = _grid((0.06, 1.6, 0.75), (0.66, 2.4, 0.75))  # its top, 10 cm under the screen's foot
+    assert group_objects(*_room(screen), UP, VOXEL) == []
+    out = group_objects(*_room(screen, desk), UP, VOXEL)
+    assert sorted(o.points for o in out) == sorted([len(screen), len(desk)])
+    (held,) = [o for o in out if o.points == len(screen)]
+    assert held.score < HANG_SCORE

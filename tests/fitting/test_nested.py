@@ -13,6 +13,7 @@ from cuboidcli.fitting.nested import (
     UNDER_GAP_M,
     join_nested,
     join_under,
+    rests_on,
 )
 from cuboidcli.fitting.objects import group_objects
 from tests.fitting.test_objects import VOXEL, _grid
@@ -172,6 +173,34 @@ def test_what_stands_on_or_beside_a_box_stays_its_own():
     # a larger box below a smaller one: the small one lies on it, the larger one holds it up
     groups, _ = _under({0: ((0.2, 0.2, 0.4), (0.4, 0.4, 0.6)), 1: ((0.0, 0.0, 0.0), (0.6, 0.6, 0.38))})
     assert sorted(groups) == [0, 1]
+
+
+def _rests(box, below):
+    """rests_on for group 0 with ``box`` over group 1 with ``below`` (each (lo, hi))."""
+    extents = {0: box, 1: below}
+    groups = {0: np.arange(10), 1: np.arange(10, 20)}
+
+    def box_of(g, h):
+        lo, hi = (np.asarray(v, dtype=float) for v in extents[g])
+        return lo.tolist(), hi.tolist(), float(np.prod(hi - lo))
+
+    return rests_on(0, groups, box_of)
+
+
+DESK = ((0.0, 0.0, 0.0), (1.2, 0.6, 0.75))
+
+
+def test_a_box_rests_on_a_box_under_it():
+    for bottom in (0.655, 0.75, 0.845):  # within UNDER_GAP_M of the desk's top, above or below it
+        assert _rests(((0.4, 0.1, bottom), (0.8, 0.3, bottom + 0.5)), DESK), bottom
+    for bottom in (0.645, 0.855):
+        assert not _rests(((0.4, 0.1, bottom), (0.8, 0.3, bottom + 0.5)), DESK), bottom
+    # at least half its footprint over the desk: 0.4 wide, the desk's edge at x = 1.2
+    assert _rests(((0.995, 0.1, 0.75), (1.395, 0.3, 1.25)), DESK)
+    assert not _rests(((1.005, 0.1, 0.75), (1.405, 0.3, 1.25)), DESK)
+    assert not _rests(((0.4, 0.1, 1.0), (0.8, 0.3, 1.5)), DESK)  # above it, on nothing
+    groups = {0: np.arange(10)}  # alone
+    assert not rests_on(0, groups, lambda g, h: ([0.0, 0.0, 0.75], [1.0, 1.0, 1.0], 0.25))
 
 
 def test_pieces_under_pieces_join_in_turn():

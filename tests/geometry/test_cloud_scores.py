@@ -85,11 +85,15 @@ def test_the_cloud_overrules_the_hint_only_at_twice_its_score():
     assert along(kept.up, X)
 
 
-def test_an_overruled_hint_is_a_warning_only_under_the_unsure_confidence():
+def test_only_a_sure_cloud_overrules_the_hint():
+    """The floor must also stand clear of every other axis (confidence at least UNSURE, 0.25): a cloud torn
+    between two axes that are not the hint's keeps the hint, with a warning."""
     sure = room_up(*room(floor=600, wall=420), hint=Y)  # confidence 0.3
     assert along(sure.up, Z) and sure.confidence == pytest.approx(0.3, abs=0.01) and sure.warning == ""
-    unsure = room_up(*room(floor=600, wall=480), hint=Y)  # confidence 0.2
-    assert along(unsure.up, Z) and unsure.confidence == pytest.approx(0.2, abs=0.01)
+    edge = room_up(*room(floor=600, wall=447), hint=Y)  # confidence 0.255
+    assert along(edge.up, Z) and edge.confidence == pytest.approx(0.255, abs=0.003) and edge.warning == ""
+    unsure = room_up(*room(floor=600, wall=456), hint=Y)  # confidence 0.24: the hint stays up
+    assert along(unsure.up, Y) and unsure.confidence == 0.0
     assert unsure.warning.startswith("up direction unsure (its floor is not clearly the lowest large plane")
 
 
