@@ -157,3 +157,17 @@ def test_a_screen_on_a_desk_against_the_wall_stands():
     assert sorted(o.points for o in out) == sorted([len(screen), len(desk)])
     (held,) = [o for o in out if o.points == len(screen)]
     assert held.score < HANG_SCORE
+
+
+def test_a_low_panel_on_a_wall_stands_wherever_the_floor_lies():
+    """A panel against the wall from 0.2 to 1.3 m, low-scored and too tall to stand on unseen legs: its
+    bottom, measured from its floor, is under 0.3 m: it does not hang, in a room on the ground or 1 m up."""
+    panel = np.concatenate(
+        [_grid((0.31, 1.9, 0.2), (0.31, 2.1, 1.3)), _grid((0.06, 1.9, 1.3), (0.28, 2.1, 1.3))]
+    )
+    for dz in (0.0, 1.0):
+        pts, lab, cuboids = _room(panel)
+        cuboids = [Cuboid(c.center + [0.0, 0.0, dz], c.half_size, c.rotation, kind=c.kind) for c in cuboids]
+        (o,) = group_objects(pts + [0.0, 0.0, dz], lab, cuboids, UP, VOXEL)
+        assert o.points == len(panel) and o.score < HANG_SCORE
+        assert o.box.corners()[:, 2].min() == pytest.approx(dz + 0.2 - VOXEL / 2)
