@@ -62,6 +62,12 @@ HINT_TIE = 2.0
 UNSURE = 0.25
 #: Below this confidence the best axis is in a tie with another one: unsure whichever the hint picks.
 TIE = 0.05
+#: A room scan stored above z = 0.1 m, seen from an origin below or beside it, passes for a camera's view
+#: (:func:`is_camera_view`: too few points on each ray to hide each other). Its file's own up then wins
+#: over the camera's -y when it scores a floor of at least this (ScanNet scans: 0.08-0.19, their -y 0-0.09)
+#: and above the camera's (a depth image of a wall, a ceiling strip and a sofa: 0.01; the living-room
+#: fragment, kept in its first camera's frame: 0).
+OWN_FLOOR = 0.05
 
 
 @dataclass(frozen=True)
@@ -171,7 +177,9 @@ def is_camera_view(points: np.ndarray, cell_rad: float = 0.01, gap_m: float = 0.
     forward): every point lies in front of the origin (z > 0.1 m) and at least 80 % of them are the
     nearest surface along their ray from it (cells of ``cell_rad`` in x / z and y / z; a point more than
     ``gap_m`` behind its cell's nearest is hidden). A room scanned from inside and stored in its own frame
-    has points all around the origin or behind each other along its rays."""
+    has points all around the origin or behind each other along its rays; one stored above z = 0.1 m and
+    seen from below spreads its points over so many rays that it can pass (:func:`room_up` then asks its
+    floor, :data:`OWN_FLOOR`)."""
     p = np.asarray(points, dtype=np.float64)
     if len(p) == 0 or not np.all(p[:, 2] > 0.1):
         return False
@@ -203,7 +211,9 @@ def room_up(
     the input's convention or its cameras' up, decides). A
     depth image in a camera's frame (:func:`is_camera_view`) takes the axis nearest that camera's up, -y,
     as a frame does (a camera is rarely upside down or rolled past 45 degrees): one view of a wall with
-    a ceiling strip reads as well on its side or upside down. The chosen axis settles on its surfaces
+    a ceiling strip reads as well on its side or upside down; but the file's own up (``hint``) wins when
+    it scores a floor of at least :data:`OWN_FLOOR` and more than the camera's -y (a room scan stored above
+    z = 0.1 m can pass for a camera's view from below it). The chosen axis settles on its surfaces
     (:func:`settle_axis`) and becomes its floor's normal (:func:`floor_normal`); the horizontal axes are
     made perpendicular to it. Without a Manhattan frame, or when the chosen axis carries under
     ``min_support`` of the normals and lies more than 45 degrees from the hint, the hint is used as it is.
@@ -211,7 +221,7 @@ def room_up(
     one nearest the hint and not in a tie (:data:`TIE`)."""
     hint = np.asarray(hint, dtype=np.float64)
     hint = hint / np.linalg.norm(hint)
-    source = "estimated"
+    source, own = "estimated", hint
     if is_camera_view(points):
         hint, source = np.array([0.0, -1.0, 0.0]), "camera"
     ok = np.linalg.norm(normals, axis=1) > 0.5
@@ -232,6 +242,9 @@ def room_up(
                       warning=_unsure(hint, why))  # fmt: skip
     scores = floor_scores(points[ok], normals[ok], frame)
     signed = np.stack([frame, -frame], axis=2).reshape(3, 6)  # columns +a0, -a0, +a1, ...
+    mine, cams = scores[int((signed.T @ own).argmax())], scores[int((signed.T @ hint).argmax())]
+    if source == "camera" and mine >= OWN_FLOOR and mine > cams:  # a room scan stored above z = 0.1 m
+        hint, source = own, "estimated"
     near = int((signed.T @ hint).argmax())
     best = int(scores.argmax())
     # a camera is rarely upside down or rolled past 45 degrees (as for a frame): its up is not overruled
