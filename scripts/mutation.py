@@ -178,6 +178,7 @@ TARGETS = (
             "tests/geometry/test_cloud_scores.py",
             "tests/geometry/test_free_side.py",
             "tests/geometry/test_cloud.py",
+            "tests/geometry/test_camera_view.py",
         ),
     ),
     Target(

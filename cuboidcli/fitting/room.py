@@ -116,7 +116,7 @@ def room_input(
     normals = estimate_normals(means, radius_m=3.0 * voxel)
     hint = np.array([0.0, 0.0, 1.0]) if up_hint is None else np.asarray(up_hint, dtype=np.float64)
     given = None if config.up is None else np.asarray(config.up, dtype=np.float64)
-    up = room_up(means, normals, hint, given, seed=config.seed)
+    up = room_up(means, normals, hint, given, seed=config.seed, cameras=viewpoints is not None)
     viewpoint = _inside_point(means, viewpoints)
     alignment = None
     if config.align != "free":

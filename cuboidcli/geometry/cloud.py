@@ -201,6 +201,7 @@ def room_up(
     given: np.ndarray | None = None,
     seed: int = 0,
     min_support: float = 0.05,
+    cameras: bool = False,
 ) -> RoomUp:
     """The room's up direction and axes from points (N, 3) and their normals (N, 3).
 
@@ -208,12 +209,13 @@ def room_up(
     to it). Otherwise the cloud is asked: each signed axis of its Manhattan frame is scored by its floor
     (:func:`floor_scores`); the best wins unless the axis nearest ``hint`` (3,) scores at least 1 /
     :data:`HINT_TIE` of it and is sure of it (a near tie, or a cloud torn between two other axes: the hint,
-    the input's convention or its cameras' up, decides). A
-    depth image in a camera's frame (:func:`is_camera_view`) takes the axis nearest that camera's up, -y,
-    as a frame does (a camera is rarely upside down or rolled past 45 degrees): one view of a wall with
-    a ceiling strip reads as well on its side or upside down; but the file's own up (``hint``) wins when
-    it scores a floor of at least :data:`OWN_FLOOR` and more than the camera's -y (a room scan stored above
-    z = 0.1 m can pass for a camera's view from below it). The chosen axis settles on its surfaces
+    the input's convention or its cameras' up, decides). Unless ``hint`` is the mean up of the cameras
+    that saw the points (``cameras``), a depth image in a camera's frame (:func:`is_camera_view`) takes
+    the axis nearest that camera's up, -y, as a frame does (a camera is rarely upside down or rolled past
+    45 degrees): one view of a wall with a ceiling strip reads as well on its side or upside down; but the
+    file's own up (``hint``) wins when it scores a floor of at least :data:`OWN_FLOOR` and more than the
+    camera's -y (a room scan stored above z = 0.1 m can pass for a camera's view from below it). The
+    chosen axis settles on its surfaces
     (:func:`settle_axis`) and becomes its floor's normal (:func:`floor_normal`); the horizontal axes are
     made perpendicular to it. Without a Manhattan frame, or when the chosen axis carries under
     ``min_support`` of the normals and lies more than 45 degrees from the hint, the hint is used as it is.
@@ -222,7 +224,7 @@ def room_up(
     hint = np.asarray(hint, dtype=np.float64)
     hint = hint / np.linalg.norm(hint)
     source, own = "estimated", hint
-    if is_camera_view(points):
+    if not cameras and is_camera_view(points):
         hint, source = np.array([0.0, -1.0, 0.0]), "camera"
     ok = np.linalg.norm(normals, axis=1) > 0.5
     try:

@@ -392,3 +392,24 @@ def test_a_low_level_slab_is_floor():
     side_floor = Cuboid([-0.02, 1.5, 2.0], [0.02, 1.5, 2.0], np.eye(3), kind="floor")
     low_slabs_are_floor([side_floor, on_side], np.array([1.0, 0.0, 0.0]))
     assert on_side.kind == "floor"
+
+
+def test_a_sequence_s_up_is_its_cameras_not_a_camera_frame_guess(parts, monkeypatch):
+    """The fit tells the up estimate whether the hint is the cameras' mean up: with viewpoints (a fused
+    sequence) no camera frame is guessed; a bare cloud may be one."""
+    import cuboidcli.fitting.room as room_module
+
+    asked = []
+    real = room_module.room_up
+    monkeypatch.setattr(room_module, "room_up", lambda *a, **k: asked.append(k["cameras"]) or real(*a, **k))
+    points = scanned_room()
+    _fit(parts, points, max_cuboids=1)
+    config, solver, sampler = parts
+    fit_room(
+        points,
+        replace(config, voxel_m=0.1, max_cuboids=1),
+        solver=solver,
+        sampler=sampler,
+        viewpoints=np.tile([2.0, 1.5, 1.2], (len(points), 1)),
+    )
+    assert asked == [False, True]

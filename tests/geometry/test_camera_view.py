@@ -77,3 +77,14 @@ def test_the_file_s_floor_must_outscore_the_camera_s():
     scores = floor_scores(pts[ok], normals[ok], np.eye(3))
     assert scores[3] > scores[4] >= OWN_FLOOR  # -y above +z
     assert room_up(pts, normals, hint=Z).source == "camera"
+
+
+def test_a_sequence_s_cameras_are_never_second_guessed_as_one_camera_s_frame(monkeypatch):
+    # the fused cloud of a sequence whose world frame puts the floor 0.5 m up passes for one camera's view;
+    # its hint is its cameras' mean up, which no camera-frame guess replaces (even with no floor to tell)
+    pts, normals = shell()
+    pts = pts + np.array([3.0, -2.0, 0.5])
+    monkeypatch.setattr(cloud, "OWN_FLOOR", 1.0)
+    assert room_up(pts, normals, hint=Z).source == "camera"
+    got = room_up(pts, normals, hint=Z, cameras=True)
+    assert got.source == "estimated" and got.up @ Z > np.cos(np.deg2rad(1.0))
