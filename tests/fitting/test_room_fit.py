@@ -54,9 +54,10 @@ def parts():
     return config, make_solver(config, None, None, "cpu"), make_sampler("sequential", None, "cpu")
 
 
-def _fit(parts, points, **room):
+def _fit(parts, points, viewpoints=None, **room):
     config, solver, sampler = parts
-    return fit_room(points, replace(config, voxel_m=0.1, **room), solver=solver, sampler=sampler)
+    config = replace(config, voxel_m=0.1, **room)
+    return fit_room(points, config, solver=solver, sampler=sampler, viewpoints=viewpoints)
 
 
 def test_a_scanned_room_gives_its_floor_walls_and_boxes_on_the_cabinet(parts):
@@ -319,14 +320,7 @@ def test_a_sequence_is_held_to_its_outline_more_loosely_than_a_scan(parts, monke
     monkeypatch.setattr(room_module, "beyond_the_room_is_wall", lambda *a: shares.append(a[3]))
     points = scanned_room()
     _fit(parts, points, max_cuboids=2)
-    config, solver, sampler = parts
-    fit_room(
-        points,
-        replace(config, voxel_m=0.1, max_cuboids=2),
-        solver=solver,
-        sampler=sampler,
-        viewpoints=np.tile([2.0, 1.5, 1.2], (len(points), 1)),
-    )
+    _fit(parts, points, np.tile([2.0, 1.5, 1.2], (len(points), 1)), max_cuboids=2)
     assert shares == [room_module.BEYOND_SHARE, room_module.BEYOND_SHARE_SEEN]
 
 
@@ -404,12 +398,5 @@ def test_a_sequence_s_up_is_its_cameras_not_a_camera_frame_guess(parts, monkeypa
     monkeypatch.setattr(room_module, "room_up", lambda *a, **k: asked.append(k["cameras"]) or real(*a, **k))
     points = scanned_room()
     _fit(parts, points, max_cuboids=1)
-    config, solver, sampler = parts
-    fit_room(
-        points,
-        replace(config, voxel_m=0.1, max_cuboids=1),
-        solver=solver,
-        sampler=sampler,
-        viewpoints=np.tile([2.0, 1.5, 1.2], (len(points), 1)),
-    )
+    _fit(parts, points, np.tile([2.0, 1.5, 1.2], (len(points), 1)), max_cuboids=1)
     assert asked == [False, True]
