@@ -68,14 +68,16 @@ def test_a_camera_view_whose_file_up_scores_no_more_than_its_own_keeps_the_camer
 
 def test_the_file_s_floor_must_outscore_the_camera_s():
     # the room above the origin with most of its floor unscanned (150 of 400 points): a floor enough for
-    # OWN_FLOOR, but the wall at the far end of y (the camera's -y) scores more, and the camera's up stays
+    # OWN_FLOOR, but the wall at the far end of y (the camera's -y) scores more, and the camera's up stays;
+    # the wall at the near end, as bare as the floor, scores less than either
     pts, normals = shell()
     keep = np.ones(len(pts), dtype=bool)
     keep[1750:2000] = False  # the floor's points are the fifth 400 (after four walls)
+    keep[950:1200] = False  # and the wall at the near end of y (its +y) mostly unscanned too
     pts, normals = pts[keep] + np.array([0.0, 0.0, 0.5]), normals[keep]
     ok = np.linalg.norm(normals, axis=1) > 0.5
     scores = floor_scores(pts[ok], normals[ok], np.eye(3))
-    assert scores[3] > scores[4] >= OWN_FLOOR  # -y above +z
+    assert scores[3] > scores[4] >= OWN_FLOOR > scores[2]  # -y above +z above +y
     assert room_up(pts, normals, hint=Z).source == "camera"
 
 
