@@ -79,8 +79,8 @@ MIN_SEED_POINTS = 8
 MIN_OBJECT_POINTS = 20
 #: Points join a seed at most this far from it through touching points (m).
 GROW_LIMIT_M = 1.5
-#: Points this many voxels or closer to a floor, wall or ceiling cuboid belong to the shell.
-SHELL_CLEARANCE = 1.5
+#: Points this many voxels or closer to a floor, wall or ceiling cuboid belong to the shell (docs/scenes.md).
+SHELL_CLEARANCE = 1.9
 #: A group whose box lies at least this much (share of its volume) inside a larger group's box joins it when
 #: their colours agree (:func:`~cuboidcli.fitting.nested.join_nested`).
 MERGE_OVERLAP = 0.9

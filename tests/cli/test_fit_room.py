@@ -38,7 +38,9 @@ def test_a_point_cloud_gives_a_world_frame_result_and_its_outputs(tmp_path):
     # the cabinet as one whole object, made of object cuboids, standing on the floor
     (cabinet,) = [o for o in d["objects"] if o["cuboids"]]
     assert set(cabinet["cuboids"]) <= {i for i, k in enumerate(kinds) if k == "object"}
-    assert sorted(round(2 * v, 1) for v in cabinet["half_size"]) == [0.7, 1.0, 1.3]
+    # (0.6 x 1.0 x 1.2 m, its back 15 cm from the wall: within the shell's 1.9 voxels, 19 cm, its side faces'
+    # points are the wall's, and its box starts where the clearance ends)
+    assert sorted(round(2 * v, 1) for v in cabinet["half_size"]) == [0.6, 1.0, 1.3]
     assert abs(cabinet["center"][2] - cabinet["half_size"][2]) < 0.05
     res = read_result(out)  # the schema takes a world result without a camera
     assert res.frame == "world" and res.camera is None and len(res.cuboids) == len(kinds)

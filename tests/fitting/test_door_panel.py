@@ -58,7 +58,7 @@ def _room(panel: np.ndarray, panel_colour, dz: float = 0.0, dxy=(0.0, 0.0)) -> l
 def test_a_wall_coloured_box_is_kept_when_it_has_a_doors_size(y_hi, z_lo, z_hi, door):
     """A 17.5 cm deep panel flat against the wall with the wall's colour is the wall's unless it stands on
     the floor at a door's size; with a colour of its own it is an object at any size."""
-    panel = _grid((1.80, 1.0, z_lo), (1.94, y_hi, z_hi))
+    panel = _grid((1.78, 1.0, z_lo), (1.92, y_hi, z_hi))
     objects = _room(panel, WALL_COLOUR)
     assert len(objects) == int(door)
     if door:

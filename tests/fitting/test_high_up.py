@@ -92,7 +92,7 @@ def test_hangs_on_wall_bounds():
     assert not hangs_on_wall(slab(0.2), [], 1.0, 0.1)
 
 
-def _shelf(z, depth=0.25, x0=0.06):
+def _shelf(z, depth=0.25, x0=0.08):
     """A board on the wall: a level layer of points ``depth`` deep from ``x0``, 0.8 m wide, at height z."""
     return _grid((x0, 1.6, z), (x0 + depth, 2.4, z))
 
@@ -101,7 +101,7 @@ def _back():
     """The front face and top edge of a sofa's back 0.25 m deep, from 0.4 to 0.85 m above the floor, 0.4 m of
     it seen."""
     return np.concatenate(
-        [_grid((0.31, 1.8, 0.4), (0.31, 2.2, 0.85)), _grid((0.06, 1.8, 0.85), (0.28, 2.2, 0.85))]
+        [_grid((0.33, 1.8, 0.4), (0.33, 2.2, 0.85)), _grid((0.08, 1.8, 0.85), (0.3, 2.2, 0.85))]
     )
 
 
@@ -112,7 +112,7 @@ def _back():
         (_shelf(0.6), False),  # lower down
         (_shelf(0.6, x0=0.6), True),  # clear of the wall: a table top
         (_shelf(1.2, depth=0.35), True),  # deeper than a thing hung on a wall
-        (_grid((0.06, 1.6, 1.2), (0.31, 2.4, 1.8)), True),  # a cupboard, its box filled: it scores
+        (_grid((0.08, 1.6, 1.2), (0.33, 2.4, 1.8)), True),  # a cupboard, its box filled: it scores
         (_back(), True),  # low enough to stand on legs the scan missed: a sofa's back against the wall
     ],
 )
@@ -132,9 +132,9 @@ def test_a_frame_on_a_wall_that_reaches_the_floor_stays():
     joins the upper (:func:`~cuboidcli.fitting.nested.join_under`) before what hangs is left out, and the
     whole frame stays, from the floor to its top."""
     upper = np.concatenate(  # the front and back edges of a frame 0.25 m deep, from 1 m up to 1.8 m
-        [_grid((x, 1.6, z), (x, 2.4, z)) for x in (0.06, 0.31) for z in (1.0, 1.8)]
-        + [_grid((x, y, 1.0), (x, y, 1.8)) for x in (0.06, 0.31) for y in (1.6, 2.4)]
-        + [_grid((0.06, y, z), (0.31, y, z)) for y in (1.6, 2.4) for z in (1.0, 1.8)]
+        [_grid((x, 1.6, z), (x, 2.4, z)) for x in (0.08, 0.33) for z in (1.0, 1.8)]
+        + [_grid((x, y, 1.0), (x, y, 1.8)) for x in (0.08, 0.33) for y in (1.6, 2.4)]
+        + [_grid((0.08, y, z), (0.33, y, z)) for y in (1.6, 2.4) for z in (1.0, 1.8)]
     )
     post = _grid((0.08, 1.9, 0.07), (0.29, 2.1, 0.9))  # under it, 10 cm below: its own group
     alone = group_objects(*_room(upper), UP, VOXEL)
@@ -151,7 +151,7 @@ def test_a_screen_on_a_desk_against_the_wall_stands():
     screen = np.concatenate(
         [_grid((0.3, 1.8, 0.85), (0.3, 2.2, 1.3)), _grid((0.1, 1.8, 0.85), (0.27, 2.2, 0.85))]
     )
-    desk = _grid((0.06, 1.6, 0.75), (0.66, 2.4, 0.75))  # its top, 10 cm under the screen's foot
+    desk = _grid((0.08, 1.6, 0.75), (0.68, 2.4, 0.75))  # its top, 10 cm under the screen's foot
     assert group_objects(*_room(screen), UP, VOXEL) == []
     out = group_objects(*_room(screen, desk), UP, VOXEL)
     assert sorted(o.points for o in out) == sorted([len(screen), len(desk)])
@@ -163,7 +163,7 @@ def test_a_low_panel_on_a_wall_stands_wherever_the_floor_lies():
     """A panel against the wall from 0.2 to 1.3 m, low-scored and too tall to stand on unseen legs: its
     bottom, measured from its floor, is under 0.3 m: it does not hang, in a room on the ground or 1 m up."""
     panel = np.concatenate(
-        [_grid((0.31, 1.9, 0.2), (0.31, 2.1, 1.3)), _grid((0.06, 1.9, 1.3), (0.28, 2.1, 1.3))]
+        [_grid((0.33, 1.9, 0.2), (0.33, 2.1, 1.3)), _grid((0.08, 1.9, 1.3), (0.3, 2.1, 1.3))]
     )
     for dz in (0.0, 1.0):
         pts, lab, cuboids = _room(panel)

@@ -19,7 +19,7 @@ from cuboidcli.fitting.not_objects import (
     on_wall,
     wall_coloured,
 )
-from cuboidcli.fitting.objects import SceneObject, floor_heights, group_objects, object_score
+from cuboidcli.fitting.objects import SHELL_CLEARANCE, SceneObject, floor_heights, group_objects, object_score
 
 VOXEL = 0.035
 UP = np.array([0.0, 0.0, 1.0])
@@ -244,20 +244,20 @@ def test_a_box_within_three_voxels_of_the_floor_stands_on_it(z0, grounded, monke
     )
 
 
-@pytest.mark.parametrize(("z0", "kept"), [(0.057, 168), (0.05, 140)])
-def test_points_within_one_and_a_half_voxels_of_the_floor_are_the_floors(z0, kept):
-    """The crate's lowest layer (28 points) 5.7 cm above the floor is the crate's, 5 cm up (under 1.5 voxels,
-    5.25 cm) the floor's."""
+@pytest.mark.parametrize(("z0", "kept"), [(0.0675, 168), (0.0655, 140)])
+def test_points_within_the_shell_clearance_of_the_floor_are_the_floors(z0, kept):
+    """The crate's lowest layer (28 points) 6.75 cm above the floor is the crate's, 6.55 cm up (under 1.9
+    voxels, 6.65 cm) the floor's."""
     crate = _box_pts(1.0, 1.0, z0, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
     pts, lab = _on_floor(crate)
     (o,) = group_objects(pts, lab, [FLOOR], UP, VOXEL)
     assert o.points == kept
 
 
-@pytest.mark.parametrize(("gap", "kept"), [(0.057, 168), (0.05, 144)])
-def test_points_within_one_and_a_half_voxels_of_a_wall_are_the_walls(gap, kept):
+@pytest.mark.parametrize(("gap", "kept"), [(0.0675, 168), (0.0655, 144)])
+def test_points_within_the_shell_clearance_of_a_wall_are_the_walls(gap, kept):
     """The same crate standing against a wall (face at x = 2): its layer nearest the wall stays only when it
-    is more than 5.25 cm from it (24 of 168 points); the wall's own points never count."""
+    is more than 6.65 cm (1.9 voxels) from it (24 of 168 points); the wall's own points never count."""
     wall = Cuboid([2.02, 1.5, 1.0], [0.02, 1.5, 1.0], np.eye(3), kind="wall")
     crate = _box_pts(2.0 - gap - 6 * VOXEL, 1.0, 0.07, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
     wall_pts = _grid((2.0, 0.2, 0.1), (2.0, 2.8, 1.5), 2 * VOXEL)
@@ -647,25 +647,29 @@ def _column(x, z0, n, y=1.0):
     return np.array([[x, y, z0 + QUARTER * i] for i in range(n)])
 
 
-def test_a_point_exactly_one_and_a_half_voxels_above_the_floor_is_the_floors():
-    """With a voxel of 0.25 m the clearance is 0.375 m: a column from exactly 0.375 m loses its lowest point
-    (not more than the clearance), one from 0.5 m keeps all 25. The column stands half a metre past the floor
-    cuboid's edge (x = 4), so that only its height over the floor's plane, not its distance from the cuboid,
-    is at the clearance."""
-    for z0, kept in ((0.375, 24), (0.5, 25)):
+def test_a_point_within_the_shell_clearance_above_the_floor_is_the_floors():
+    """With a voxel of 0.25 m the clearance is 0.475 m: a column from 0.47 m loses its lowest point, one from
+    0.48 m keeps all 25. The column stands half a metre past the floor cuboid's edge (x = 4), so that only
+    its height over the floor's plane, not its distance from the cuboid, is at the clearance."""
+    assert SHELL_CLEARANCE * QUARTER == pytest.approx(0.475)
+    for z0, kept in ((0.47, 24), (0.48, 25)):
         (o,) = group_objects(_column(4.5, z0, 25), np.full(25, -1), [SLAB], UP, QUARTER)
         assert o.points == kept
 
 
-def test_a_point_exactly_one_and_a_half_voxels_from_a_wall_is_the_walls():
-    """A wall whose face is x = 2.0: a column at x = 1.625 (0.375 m off) belongs to it, the column beside it
-    at x = 1.375 does not."""
+def test_a_point_within_the_shell_clearance_from_a_wall_is_the_walls():
+    """A wall whose face is x = 2.0 (the clearance 0.475 m at a voxel of 0.25 m): a column at x = 1.53
+    (0.47 m off) belongs to it, the column beside it at x = 1.375 does not; at x = 1.52 (0.48 m off) both
+    are an object."""
     wall = Cuboid([2.25, 1.0, 3.0], [0.25, 2.0, 3.0], np.eye(3), kind="wall")
-    pts = np.concatenate([_column(1.625, 1.0, 21), _column(1.375, 1.0, 21)])
+    pts = np.concatenate([_column(1.53, 1.0, 21), _column(1.375, 1.0, 21)])
     (o,) = group_objects(pts, np.full(42, -1), [SLAB, wall], UP, QUARTER)
     assert o.points == 21
     lo, hi = _extent(o.box)
     assert lo[0] == pytest.approx(1.25) and hi[0] == pytest.approx(1.5)
+    pts = np.concatenate([_column(1.52, 1.0, 21), _column(1.375, 1.0, 21)])
+    (o,) = group_objects(pts, np.full(42, -1), [SLAB, wall], UP, QUARTER)
+    assert o.points == 42
 
 
 def test_a_box_exactly_three_voxels_up_does_not_stand_on_the_floor():
