@@ -223,7 +223,7 @@ TARGETS = (
                 "tests/fitting/test_nested.py",
             ),
         )
-        for name in ("objects", "not_objects")
+        for name in ("objects", "not_objects", "floors")
     ),
     # the sinks set into a counter's top, seats side by side under one back, and nested groups joined
     Target("basins", "cuboidcli/fitting/basins.py", None, ("tests/fitting/test_basins.py",)),

@@ -7,8 +7,9 @@ planning around a table, a detector-style evaluation) need one box per object, l
 groups, after the fit, without changing the cuboids:
 
 1. The candidate points are the fitting points that are not the room's shell: not inliers of a floor, wall
-   or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of one, and above the floor under them
-   (:func:`floor_heights`).
+   or ceiling cuboid, not within :data:`SHELL_CLEARANCE` voxels of a wall or a ceiling nor within
+   :data:`FLOOR_CLEARANCE_M` of a floor, and that far above the floor under them
+   (:func:`~cuboidcli.fitting.floors.floor_heights`).
 2. Seeds: the inliers of each object cuboid, split into the pieces that touch closely (points at most
    :data:`SEED_REACH` voxels apart along every axis). One cuboid laid over two tables gives two seeds;
    pieces of fewer than :data:`MIN_SEED_POINTS` points are no seed.
@@ -51,6 +52,7 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.basins import object_basins
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.fitting.doors import door_walls
+from cuboidcli.fitting.floors import floor_heights
 from cuboidcli.fitting.nested import join_nested, join_under, rests_on
 from cuboidcli.fitting.not_objects import (
     door_panel,
@@ -79,15 +81,17 @@ MIN_SEED_POINTS = 8
 MIN_OBJECT_POINTS = 20
 #: Points join a seed at most this far from it through touching points (m).
 GROW_LIMIT_M = 1.5
-#: Points this many voxels or closer to a floor, wall or ceiling cuboid belong to the shell (docs/scenes.md).
+#: Points this many voxels or closer to a wall or ceiling cuboid belong to the shell (docs/scenes.md).
 SHELL_CLEARANCE = 1.9
+#: Points this close (m) or closer to a floor cuboid or to the floor under them belong to the shell, and
+#: at least :data:`SHELL_CLEARANCE` voxels: a real floor bends and steps by centimetres whatever the voxel
+#: (docs/scenes.md).
+FLOOR_CLEARANCE_M = 0.11
 #: A group whose box lies at least this much (share of its volume) inside a larger group's box joins it when
 #: their colours agree (:func:`~cuboidcli.fitting.nested.join_nested`).
 MERGE_OVERLAP = 0.9
-#: A point's floor is the highest floor cuboid whose footprint comes this close to it (m), else the nearest
-#: (the lowest instead lost one of 31 synthetic objects on the bare clouds).
-FLOOR_REACH_M = 0.3
-#: A box whose lowest point is within this many voxels of the floor is extended down to it.
+#: A box whose lowest point is within this many voxels of the floor is extended down to it (within as many
+#: more as the floor's clearance exceeds :data:`SHELL_CLEARANCE` voxels).
 FLOOR_TOUCH = 3.0
 #: Furniture stands on the floor, but a scan often misses what holds it up (thin legs, a chair's underside in
 #: the shadow of its seat). A floating box whose top is at most STAND_TOP_M[1] above its floor is extended
@@ -191,29 +195,6 @@ def object_score(local: np.ndarray, lo: np.ndarray, hi: np.ndarray, voxel_m: flo
     return float(support * fill * (1.0 if grounded else SCORE_FLOATING))
 
 
-def floor_heights(level: np.ndarray, floors: list[Cuboid], R: np.ndarray) -> np.ndarray:
-    """(N,) the height of the floor under each point of ``level`` (N, 3) (the room's level frame, ``R``
-    turning it to the world): the top face of the floor cuboid whose footprint is nearest the point (the
-    highest of those within :data:`FLOOR_REACH_M` of it). Real scans bend: one ScanNet room's floor
-    (scene0001_00) rises 0.4 m over 3.5 m, and the room's highest floor cuboid hid the beds on the lower part
-    (recall at IoU 0.25 on scenes 1-3: 43.7 -> 52.9 % seed 0, 42.0 -> 52.1 % seed 1)."""
-    dist, height = [], []
-    for c in floors:
-        k = int(np.argmin(c.half_size))
-        n = R.T @ c.rotation[:, k]
-        n = n if n[2] >= 0 else -n
-        top = R.T @ c.center + n * c.half_size[k]  # a point of the top face, level frame
-        local = (level - R.T @ c.center) @ (R.T @ c.rotation)
-        out = np.maximum(np.abs(local) - c.half_size, 0.0)
-        out[:, k] = 0.0
-        dist.append(np.linalg.norm(out, axis=1))
-        nz = max(float(n[2]), 0.5)
-        height.append(top[2] - (n[0] * (level[:, 0] - top[0]) + n[1] * (level[:, 1] - top[1])) / nz)
-    dist, height = np.array(dist), np.array(height)
-    near = dist <= np.maximum(dist.min(0), FLOOR_REACH_M)
-    return np.where(near, height, -np.inf).max(0)
-
-
 def _stands_on_legs(
     member_groups: np.ndarray,
     seeds: list[int],
@@ -265,9 +246,12 @@ def group_objects(
         under = floor_heights(level, floors, R)
     else:
         under = np.full(len(points), float(np.percentile(level[:, 2], ROBUST_PERCENTILES[0])))
-    keep = ~np.isin(labels, shell) & (level[:, 2] > under + SHELL_CLEARANCE * voxel_m)
+    floor_clear = max(SHELL_CLEARANCE * voxel_m, FLOOR_CLEARANCE_M)
+    lift = floor_clear - SHELL_CLEARANCE * voxel_m  # what stands on the floor starts that much higher
+    keep = ~np.isin(labels, shell) & (level[:, 2] > under + floor_clear)
     for i in shell:
-        keep &= _outside_distance(points, cuboids[i]) > SHELL_CLEARANCE * voxel_m
+        clear = floor_clear if cuboids[i].kind == "floor" else SHELL_CLEARANCE * voxel_m
+        keep &= _outside_distance(points, cuboids[i]) > clear
     doors = [  # before the candidates: a door's slab is the shell's (cuboidcli.fitting.doors)
         SceneObject(box, (i,), len(local), object_score(local, lo, hi, voxel_m, True))
         for i, box, local, lo, hi in door_walls(level, labels, cuboids, R, under, colors)
@@ -319,7 +303,7 @@ def group_objects(
         local = q[members] @ _yaw_matrix(theta)
         floor_z = float(np.median(under_q[members]))
         lo, hi = local.min(0) - voxel_m / 2, local.max(0) + voxel_m / 2
-        if lo[2] < floor_z + FLOOR_TOUCH * voxel_m:
+        if lo[2] < floor_z + FLOOR_TOUCH * voxel_m + lift:
             lo[2] = floor_z
         lo[2] = max(lo[2], floor_z)
         return lo, hi

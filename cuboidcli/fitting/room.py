@@ -25,7 +25,7 @@ from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.fit_input import FitInput, RoomFitting
-from cuboidcli.fitting.objects import floor_heights
+from cuboidcli.fitting.floors import floor_heights
 from cuboidcli.fitting.room_backend import RoomBackend
 from cuboidcli.fitting.seats import is_level_slab
 from cuboidcli.geometry.cloud import estimate_normals, free_side_normals, room_up, voxel_groups

@@ -48,10 +48,10 @@ def _room(panel: np.ndarray, panel_colour, dz: float = 0.0, dxy=(0.0, 0.0)) -> l
 @pytest.mark.parametrize(
     ("y_hi", "z_lo", "z_hi", "door"),
     [
-        (1.8, 0.07, 1.4, True),  # 0.805 m wide, 1.42 m tall, on the floor
-        (1.8, 0.07, 1.0, False),  # 1.02 m tall: a bulge of the wall
-        (1.5, 0.07, 1.4, False),  # 0.525 m wide
-        (2.4, 0.07, 1.4, False),  # 1.435 m wide
+        (1.8, 0.14, 1.4, True),  # 0.805 m wide, 1.42 m tall, on the floor
+        (1.8, 0.14, 1.0, False),  # 1.02 m tall: a bulge of the wall
+        (1.5, 0.14, 1.4, False),  # 0.525 m wide
+        (2.4, 0.14, 1.4, False),  # 1.435 m wide
         (1.8, 0.30, 1.7, False),  # 0.28 m above the floor
     ],
 )

@@ -207,7 +207,7 @@ def test_the_door_comes_with_the_rooms_other_objects_largest_first():
     """A crate of 343 unexplained points in the middle of the room: two objects, the crate first."""
     pts, lab, cuboids, colors = _room(DOOR)
     g = np.arange(7) * VOXEL
-    crate = np.stack(np.meshgrid(g + 1.5, g + 1.5, g + 0.1, indexing="ij"), -1).reshape(-1, 3)
+    crate = np.stack(np.meshgrid(g + 1.5, g + 1.5, g + 0.14, indexing="ij"), -1).reshape(-1, 3)
     pts = np.concatenate([pts, crate])
     lab = np.concatenate([lab, np.full(len(crate), -1)]).astype(np.int32)
     colors = np.concatenate([colors, np.tile(WOOD, (len(crate), 1))])

@@ -11,6 +11,7 @@ import pytest
 
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting import objects
+from cuboidcli.fitting.floors import floor_heights
 from cuboidcli.fitting.not_objects import (
     floor_to_ceiling,
     is_bent_floor,
@@ -19,10 +20,18 @@ from cuboidcli.fitting.not_objects import (
     on_wall,
     wall_coloured,
 )
-from cuboidcli.fitting.objects import SHELL_CLEARANCE, SceneObject, floor_heights, group_objects, object_score
+from cuboidcli.fitting.objects import (
+    FLOOR_CLEARANCE_M,
+    SHELL_CLEARANCE,
+    SceneObject,
+    group_objects,
+    object_score,
+)
 
 VOXEL = 0.035
 UP = np.array([0.0, 0.0, 1.0])
+#: The lowest layer of what stands on the floor in these rooms, clear of the floor's 11 cm.
+ABOVE = 0.14
 
 
 def _grid(lo, hi, step=VOXEL):
@@ -198,9 +207,10 @@ def _box_pts(x0, y0, z0, w, d, h):
 
 
 def test_a_box_on_the_floor_its_extent_points_and_score():
-    """A crate of unlabelled points 0.2 x 0.1 x 0.2 m (7 x 4 x 6 points from z = 0.07): its box spans the
-    points grown by half a voxel and stands on the floor (lowest point within 3 voxels)."""
-    crate = _box_pts(1.0, 1.0, 0.07, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
+    """A crate of unlabelled points 0.2 x 0.1 x 0.2 m (7 x 4 x 6 points from z = 0.14): its box spans the
+    points grown by half a voxel and stands on the floor (its lowest point just over the floor's
+    clearance)."""
+    crate = _box_pts(1.0, 1.0, ABOVE, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
     assert len(crate) == 7 * 4 * 6
     pts, lab = _on_floor(crate)
     (o,) = group_objects(pts, lab, [FLOOR], UP, VOXEL)
@@ -215,11 +225,12 @@ def test_a_box_on_the_floor_its_extent_points_and_score():
     assert 0.0 < o.score < 1.0 - math.exp(-168 / 400) + 1e-12
 
 
-@pytest.mark.parametrize(("z0", "grounded"), [(0.1175, True), (0.1275, False)])
+@pytest.mark.parametrize(("z0", "grounded"), [(0.1625, True), (0.1725, False)])
 def test_a_box_within_three_voxels_of_the_floor_stands_on_it(z0, grounded, monkeypatch):
-    """The box's bottom (half a voxel under its lowest points) 10 or 11 cm up, against 3 voxels (10.5 cm).
-    A low floating box is then extended to the floor as furniture on unseen legs (STAND_LOW_M), but its
-    score stays that of a floating box."""
+    """The box's bottom (half a voxel under its lowest points) 14.5 or 15.5 cm up, against 3 voxels (10.5
+    cm) and the 4.35 cm by which the floor's clearance (11 cm) exceeds 1.9 voxels: what stands on the
+    floor starts that much higher. A low floating box is then extended to the floor as furniture on unseen
+    legs (STAND_LOW_M), but its score stays that of a floating box."""
     import cuboidcli.fitting.objects as objects_module
 
     crate = _box_pts(1.0, 1.0, z0, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
@@ -244,10 +255,11 @@ def test_a_box_within_three_voxels_of_the_floor_stands_on_it(z0, grounded, monke
     )
 
 
-@pytest.mark.parametrize(("z0", "kept"), [(0.0675, 168), (0.0655, 140)])
+@pytest.mark.parametrize(("z0", "kept"), [(0.111, 168), (0.109, 140)])
 def test_points_within_the_shell_clearance_of_the_floor_are_the_floors(z0, kept):
-    """The crate's lowest layer (28 points) 6.75 cm above the floor is the crate's, 6.55 cm up (under 1.9
-    voxels, 6.65 cm) the floor's."""
+    """The crate's lowest layer (28 points) 11.1 cm above the floor is the crate's, 10.9 cm up the floor's:
+    at a voxel of 3.5 cm the floor's clearance is its 11 cm, not 1.9 voxels (6.65 cm), a wall's."""
+    assert FLOOR_CLEARANCE_M == 0.11 > SHELL_CLEARANCE * VOXEL
     crate = _box_pts(1.0, 1.0, z0, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
     pts, lab = _on_floor(crate)
     (o,) = group_objects(pts, lab, [FLOOR], UP, VOXEL)
@@ -259,7 +271,7 @@ def test_points_within_the_shell_clearance_of_a_wall_are_the_walls(gap, kept):
     """The same crate standing against a wall (face at x = 2): its layer nearest the wall stays only when it
     is more than 6.65 cm (1.9 voxels) from it (24 of 168 points); the wall's own points never count."""
     wall = Cuboid([2.02, 1.5, 1.0], [0.02, 1.5, 1.0], np.eye(3), kind="wall")
-    crate = _box_pts(2.0 - gap - 6 * VOXEL, 1.0, 0.07, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
+    crate = _box_pts(2.0 - gap - 6 * VOXEL, 1.0, ABOVE, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
     wall_pts = _grid((2.0, 0.2, 0.1), (2.0, 2.8, 1.5), 2 * VOXEL)
     pts, lab = _on_floor(crate, wall_pts, labels=[-1, 1])
     (o,) = group_objects(pts, lab, [FLOOR, wall], UP, VOXEL)
@@ -267,7 +279,7 @@ def test_points_within_the_shell_clearance_of_a_wall_are_the_walls(gap, kept):
 
 
 def test_without_a_floor_cuboid_the_floor_is_the_lowest_percent_of_points():
-    crate = _box_pts(1.0, 1.0, 0.07, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
+    crate = _box_pts(1.0, 1.0, ABOVE, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
     pts, lab = _on_floor(crate)
     lab[lab == 0] = -1  # the floor's points are there, but no floor cuboid
     (o,) = group_objects(pts, lab, [], UP, VOXEL)
@@ -293,7 +305,7 @@ def _row_and_column(n_row):
 
 def _shelf_frame():
     """Four posts 0.6 x 0.4 m apart up to 1 m and a board on them."""
-    posts = np.concatenate([_grid((x, y, 0.07), (x, y, 1.0)) for x in (1.0, 1.6) for y in (1.0, 1.4)])
+    posts = np.concatenate([_grid((x, y, ABOVE), (x, y, 1.0)) for x in (1.0, 1.6) for y in (1.0, 1.4)])
     return np.concatenate([posts, _grid((1.0, 1.0, 1.0), (1.6, 1.4, 1.0))])
 
 
@@ -412,8 +424,8 @@ def test_a_group_that_joined_another_grows_its_box_for_the_next():
 
 
 def test_objects_come_largest_first_with_their_cuboids():
-    small = _box_pts(0.3, 0.3, 0.07, 3 * VOXEL, 3 * VOXEL, 3 * VOXEL)
-    large = _box_pts(2.0, 2.0, 0.07, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
+    small = _box_pts(0.3, 0.3, ABOVE, 3 * VOXEL, 3 * VOXEL, 3 * VOXEL)
+    large = _box_pts(2.0, 2.0, ABOVE, 6 * VOXEL, 3 * VOXEL, 5 * VOXEL)
     pts, lab = _on_floor(small, large)
     out = group_objects(pts, lab, [FLOOR], UP, VOXEL)
     assert [o.points for o in out] == [168, 64]
