@@ -13,6 +13,9 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting import objects
 from cuboidcli.fitting.floors import floor_heights
 from cuboidcli.fitting.not_objects import (
+    FLOOR_PATCH_LAYER_M,
+    FLOOR_PATCH_MEDIAN_M,
+    FLOOR_PATCH_TOP_M,
     floor_to_ceiling,
     is_bent_floor,
     is_floor_patch,
@@ -264,6 +267,26 @@ def test_points_within_the_shell_clearance_of_the_floor_are_the_floors(z0, kept)
     pts, lab = _on_floor(crate)
     (o,) = group_objects(pts, lab, [FLOOR], UP, VOXEL)
     assert o.points == kept
+
+
+@pytest.mark.parametrize(("z0", "kept"), [(0.11, 20), (0.1101, 21)])
+def test_a_point_exactly_at_the_floor_s_clearance_is_the_floors(z0, kept):
+    """A column of 21 points half a metre past the floor cuboid's edge (only its height counts): its lowest
+    point exactly 11 cm up is the floor's, 0.1 mm higher the column's."""
+    column = np.array([[3.5, 1.0, z0 + VOXEL * i] for i in range(21)])
+    (o,) = group_objects(column, np.full(21, -1), [FLOOR], UP, VOXEL)
+    assert o.points == kept
+
+
+@pytest.mark.parametrize(("z", "found"), [(0.12, 0), (0.14, 0), (0.15, 1)])
+def test_a_flat_layer_just_over_the_floor_s_clearance_is_the_floor(z, found):
+    """A level layer of 15 x 15 points (0.5 m square) 12 or 14 cm up, 1-3 cm over the floor's clearance, is
+    a patch of a floor that steps (:func:`~cuboidcli.fitting.not_objects.is_floor_patch`); 15 cm up it is
+    the lid of something low."""
+    layer = _grid((1.0, 1.0, z), (1.49, 1.49, z))
+    assert len(layer) == 225
+    pts, lab = _on_floor(layer)
+    assert len(group_objects(pts, lab, [FLOOR], UP, VOXEL)) == found
 
 
 @pytest.mark.parametrize(("gap", "kept"), [(0.0675, 168), (0.0655, 144)])
@@ -594,22 +617,25 @@ def test_wall_colour_is_the_median_of_the_boxs_points():
 
 
 def test_floor_patch_bounds():
-    assert is_floor_patch(np.full(11, 0.05), 0.3)
-    assert not is_floor_patch(np.full(11, 0.05), 0.31)
-    assert not is_floor_patch(np.full(11, 0.12), 0.2)  # its median 12 cm up
+    """Half the patch's points at most 14 cm up: 3 cm over the floor's clearance (11 cm)."""
+    assert (FLOOR_PATCH_TOP_M, FLOOR_PATCH_LAYER_M, FLOOR_PATCH_MEDIAN_M) == (0.3, 0.1, 0.14)
+    assert is_floor_patch(np.full(11, 0.13), 0.3)
+    assert not is_floor_patch(np.full(11, 0.13), 0.31)
+    assert not is_floor_patch(np.full(11, 0.15), 0.2)  # its median 15 cm up
     assert not is_floor_patch(np.linspace(0.0, 0.15, 11), 0.2)  # a layer 12 cm thick (p10 1.5, p90 13.5)
 
 
 def test_floor_patch_percentiles_at_their_bounds():
     """With 11 heights the 10th, 50th and 90th percentiles are the 2nd, 6th and 10th values."""
-    layer = np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.1, 0.3])
-    assert is_floor_patch(layer, 0.2)  # p90 - p10 = 0.1, p91 would be 0.12
-    wide = np.array([0.0, 0.0, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.1, 0.11, 0.11])
-    assert not is_floor_patch(wide, 0.2)  # p90 - p10 = 0.11 (p11 would be 0.01)
-    median = np.array([0.1] * 6 + [0.2] * 5)
-    assert is_floor_patch(median, 0.25)  # p50 = 0.1, p90 - p10 = 0.1; p51 would be 0.11
-    low_tail = np.array([0.0, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05, 0.05])
-    assert is_floor_patch(low_tail, 0.1)
+    layer = np.array([0.12] * 9 + [0.22, 0.3])
+    assert is_floor_patch(layer, 0.3)  # p90 - p10 = 0.1, p91 - p10 would be 0.108
+    wide = np.array([0.02, 0.02] + [0.12] * 7 + [0.15, 0.15])
+    assert not is_floor_patch(wide, 0.3)  # p90 - p10 = 0.13 (its median, 0.12, within 0.14)
+    median = np.array([0.14] * 6 + [0.24] * 5)
+    assert is_floor_patch(median, 0.3)  # p50 = 0.14, p90 - p10 = 0.1; p51 would be 0.141
+    assert not is_floor_patch(median + 0.001, 0.3)
+    low_tail = np.array([0.11] + [0.13] * 10)
+    assert is_floor_patch(low_tail, 0.15)
 
 
 def _slope(degrees, n_side=4, z0=0.05, length=1.0):
