@@ -629,8 +629,8 @@ def test_floor_patch_percentiles_at_their_bounds():
     """With 11 heights the 10th, 50th and 90th percentiles are the 2nd, 6th and 10th values."""
     layer = np.array([0.12] * 9 + [0.22, 0.3])
     assert is_floor_patch(layer, 0.3)  # p90 - p10 = 0.1, p91 - p10 would be 0.108
-    wide = np.array([0.02, 0.02] + [0.12] * 7 + [0.15, 0.15])
-    assert not is_floor_patch(wide, 0.3)  # p90 - p10 = 0.13 (its median, 0.12, within 0.14)
+    wide = np.array([0.02, 0.02] + [0.12] * 7 + [0.125, 0.125])
+    assert not is_floor_patch(wide, 0.3)  # p90 - p10 = 0.105 (p11 would be 0.03: 0.095)
     median = np.array([0.14] * 6 + [0.24] * 5)
     assert is_floor_patch(median, 0.3)  # p50 = 0.14, p90 - p10 = 0.1; p51 would be 0.141
     assert not is_floor_patch(median + 0.001, 0.3)
