@@ -68,6 +68,15 @@ TIE = 0.05
 #: and above the camera's (a depth image of a wall, a ceiling strip and a sofa: 0.01; the living-room
 #: fragment, kept in its first camera's frame: 0).
 OWN_FLOOR = 0.05
+#: A file's convention is wrong more often than a camera: a room stored y up is read as z up. An axis across
+#: the convention's (perpendicular to it) then wins without a clear score when its floor is open above: its
+#: score less its opposite's (a scan's floor has no ceiling over it; a wall faces the opposite wall) is at
+#: least :data:`OPEN_FLOOR`, more than the convention's axis's, and its score at least :data:`OPEN_SHARE` of
+#: that axis's. The 10 real ScanNet scans turned y up, y down and x up: such a floor's margin is 0.079-0.202,
+#: a wall's at most 0.100 and less than the floor's; the synthetic rooms (bare, with ceilings) give their
+#: walls at most 0.091, below their own floor's margin or their score far below the floor's.
+OPEN_FLOOR = 0.07
+OPEN_SHARE = 0.8
 
 
 @dataclass(frozen=True)
@@ -209,16 +218,17 @@ def room_up(
     to it). Otherwise the cloud is asked: each signed axis of its Manhattan frame is scored by its floor
     (:func:`floor_scores`); the best wins unless the axis nearest ``hint`` (3,) scores at least 1 /
     :data:`HINT_TIE` of it and is sure of it (a near tie, or a cloud torn between two other axes: the hint,
-    the input's convention or its cameras' up, decides). Unless ``hint`` is the mean up of the cameras
-    that saw the points (``cameras``), a depth image in a camera's frame (:func:`is_camera_view`) takes
-    the axis nearest that camera's up, -y, as a frame does (a camera is rarely upside down or rolled past
-    45 degrees): one view of a wall with a ceiling strip reads as well on its side or upside down; but the
-    file's own up (``hint``) wins when it scores a floor of at least :data:`OWN_FLOOR` and more than the
-    camera's -y (a room scan stored above z = 0.1 m can pass for a camera's view from below it). The
-    chosen axis settles on its surfaces
-    (:func:`settle_axis`) and becomes its floor's normal (:func:`floor_normal`); the horizontal axes are
-    made perpendicular to it. Without a Manhattan frame, or when the chosen axis carries under
-    ``min_support`` of the normals and lies more than 45 degrees from the hint, the hint is used as it is.
+    the input's convention or its cameras' up, decides); a convention the cloud did not overrule still
+    gives way to an axis across it whose floor is open above (:data:`OPEN_FLOOR`). Unless ``hint`` is the
+    mean up of the cameras that saw the points (``cameras``), a depth image in a camera's frame
+    (:func:`is_camera_view`) takes the axis nearest that camera's up, -y, as a frame does (a camera is
+    rarely upside down or rolled past 45 degrees): one view of a wall with a ceiling strip reads as well on
+    its side or upside down; but the file's own up (``hint``) wins when it scores a floor of at least
+    :data:`OWN_FLOOR` and more than the camera's -y (a room scan stored above z = 0.1 m can pass for a
+    camera's view from below it). The chosen axis settles on its surfaces (:func:`settle_axis`) and becomes
+    its floor's normal (:func:`floor_normal`); the horizontal axes are made perpendicular to it. Without a
+    Manhattan frame, or when the chosen axis carries under ``min_support`` of the normals and lies more
+    than 45 degrees from the hint, the hint is used as it is.
     A confidence under :data:`UNSURE` comes with a warning, unless the axis the cloud scores best is the
     one nearest the hint and not in a tie (:data:`TIE`)."""
     hint = np.asarray(hint, dtype=np.float64)
@@ -253,6 +263,8 @@ def room_up(
     sure = scores[best] > 0 and 1.0 - np.delete(scores, best).max() / scores[best] >= UNSURE
     overrule = source != "camera" and scores[best] > HINT_TIE * scores[near] and sure
     pick = best if overrule else near
+    if not (overrule or cameras or source == "camera"):
+        pick = _open_floor(scores, near)
     rest = np.delete(scores, pick)
     confidence = 0.0 if scores[pick] <= 0 else float(np.clip(1.0 - rest.max() / scores[pick], 0.0, 1.0))
     up = settle_axis(normals[ok], signed[:, pick])
@@ -269,6 +281,21 @@ def room_up(
     if confidence < UNSURE and (best != near or confidence < TIE):
         warning = _unsure(up, "its floor is not clearly the lowest large plane of one direction")
     return RoomUp(up, axes, source, _support(support, frame, up), confidence, warning)
+
+
+def _open_floor(scores: np.ndarray, near: int) -> int:
+    """The signed axis (index into ``scores``, :func:`floor_scores`' order) across the axis ``near`` of the
+    input's convention whose floor is open above and beats it (:data:`OPEN_FLOOR`), else ``near``."""
+    margin = scores - scores[np.arange(6) ^ 1]  # each axis's score less its opposite's
+    across = [
+        k
+        for k in range(6)
+        if k // 2 != near // 2
+        and margin[k] >= OPEN_FLOOR
+        and margin[k] > margin[near]
+        and scores[k] >= OPEN_SHARE * scores[near]
+    ]
+    return max(across, key=lambda k: margin[k]) if across else near
 
 
 def _unsure(up: np.ndarray, why: str) -> str:

@@ -16,8 +16,9 @@ def _plane(rng, origin, e1, e2, n):
     return np.asarray(origin) + uv[:, :1] * np.asarray(e1) + uv[:, 1:] * np.asarray(e2)
 
 
-def _room(size=(6.0, 5.0, 2.5), floor=12000, wall=3000, seed=0):
-    """Points (N, 3), z up, of a room's floor, four walls and a 1.2 x 0.6 x 0.75 m table."""
+def _room(size=(6.0, 5.0, 2.5), floor=12000, wall=3000, seed=0, ceiling=0):
+    """Points (N, 3), z up, of a room's floor, four walls, a 1.2 x 0.6 x 0.75 m table and ``ceiling``
+    points on its ceiling."""
     rng = np.random.default_rng(seed)
     x, y, z = size
     parts = [
@@ -27,6 +28,7 @@ def _room(size=(6.0, 5.0, 2.5), floor=12000, wall=3000, seed=0):
         _plane(rng, [0, 0, 0], [0, y, 0], [0, 0, z], wall),
         _plane(rng, [x, 0, 0], [0, y, 0], [0, 0, z], wall),
         _plane(rng, [2.0, 2.0, 0.75], [1.2, 0, 0], [0, 0.6, 0], 800),
+        _plane(rng, [0, 0, z], [x, 0, 0], [0, y, 0], ceiling),
     ]
     pts = np.concatenate(parts)
     return pts + rng.normal(0, 0.003, pts.shape)
@@ -64,12 +66,23 @@ def test_a_low_margin_the_hint_agrees_with_is_no_warning():
 
 
 def test_in_a_near_tie_the_hint_decides_and_is_reported_unsure():
-    # a cube of a room with a bare floor: every face looks like a floor; the hint picks
-    room = _room(size=(3.0, 3.0, 3.0), floor=3000, wall=3000)
+    # a closed cube of a room with a bare floor: every face looks like a floor; the hint picks
+    room = _room(size=(3.0, 3.0, 3.0), floor=3000, wall=3000, ceiling=3000)
     for hint in (Z, np.array([1.0, 0.0, 0.0])):
         up = _up(room, hint)
         assert _angle(up.up, hint) < 1.0 and up.confidence < 0.25
         assert "up direction unsure" in up.warning and "--up" in up.warning
+
+
+def test_a_floor_open_above_wins_over_a_wall_the_convention_names():
+    """The same cube without its ceiling: the floor and the walls score alike, but only the floor has
+    nothing facing it (a scan seldom holds its ceiling; each wall faces another). A file read with the
+    wrong convention (up along a wall) is still fitted floor-down, with a warning: the scores tie."""
+    room = _room(size=(3.0, 3.0, 3.0), floor=3000, wall=3000)
+    for hint in (Z, np.array([1.0, 0.0, 0.0]), np.array([0.0, -1.0, 0.0])):
+        up = _up(room, hint)
+        assert _angle(up.up, Z) < 1.0 and up.source == "estimated"
+        assert up.confidence < 0.25 and "up direction unsure" in up.warning
 
 
 def _depth_view(seed=0):

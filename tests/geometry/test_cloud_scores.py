@@ -300,3 +300,50 @@ def test_a_single_point_or_a_near_wall_in_front_is_a_camera_view():
     assert is_camera_view(np.array([[0.1, 0.0, 2.0]]))
     assert is_camera_view(camera_view(80, 0, 0.0) * 0.06)  # a wall 12 cm in front
     assert not is_camera_view(camera_view(80, 0, 0.0) * 0.05)  # 10 cm: too near for a depth camera
+
+
+def two_walls(floor: int, wall: int, facing: int):
+    """:func:`room` with ``facing`` of its clutter points moved onto the wall across the room (x = 3 m,
+    normals along x): the hint's axis x then scores ``wall`` / N less ``facing`` / N."""
+    pts, normals = room(floor=floor, wall=wall)
+    pts[-facing:] = np.c_[np.full(facing, 3.0), pts[-facing:, 1], pts[-facing:, 2]]
+    normals[-facing:] = X
+    return pts, normals
+
+
+def test_a_floor_open_above_wins_over_the_convention_s_axis_from_a_margin_of_0_07():
+    """Where the cloud does not overrule the input's convention (here X: the floor scores under twice the
+    wall), an axis across it still wins when its score less its opposite's (the floor's: all of it, no
+    ceiling) is at least OPEN_FLOOR (0.07) and more than the convention's axis's (the wall's: all of it)."""
+    scores = floor_scores(*room(floor=710, wall=600), np.eye(3))
+    assert scores[4] == pytest.approx(0.071) and scores[0] == pytest.approx(0.06, abs=1e-3)
+    assert along(room_up(*room(floor=710, wall=600), hint=X).up, Z)
+    assert along(room_up(*room(floor=700, wall=600), hint=X).up, Z)  # exactly 0.07
+    assert along(room_up(*room(floor=699, wall=600), hint=X).up, X)  # 0.0699: the convention stays
+    assert along(room_up(*room(floor=750, wall=740), hint=X).up, Z)
+    assert along(room_up(*room(floor=750, wall=760), hint=X).up, X)  # the wall's margin is larger
+
+
+def test_an_open_floor_needs_four_fifths_of_the_convention_s_score():
+    """The convention's wall faces another across the room: its margin is small, but an open floor must
+    still score at least OPEN_SHARE (0.8) of it."""
+    scores = floor_scores(*two_walls(floor=860, wall=1050, facing=350), np.eye(3))
+    assert scores[0] == pytest.approx(0.105, abs=1e-3) and scores[1] == pytest.approx(0.035, abs=1e-3)
+    assert along(room_up(*two_walls(floor=840, wall=1050, facing=350), hint=X).up, Z)  # 0.8 of it
+    assert along(room_up(*two_walls(floor=838, wall=1050, facing=350), hint=X).up, X)  # 0.798 of it
+
+
+def test_an_open_floor_does_not_overrule_the_cameras_up():
+    assert along(room_up(*room(floor=710, wall=600), hint=X, cameras=True).up, X)
+    assert along(room_up(*room(floor=710, wall=600), hint=X).up, Z)
+
+
+def test_a_ceiling_seen_better_than_the_floor_does_not_turn_the_room_upside_down():
+    """Only an axis across the convention's can win by its open floor: a ceiling scanned whole over a floor
+    hidden by furniture reads as an open floor upside down, and the convention stays (the ceiling scores
+    under twice the floor: the cloud does not overrule it)."""
+    pts, normals = room(floor=800, wall=200)
+    pts[-1550:, 2], normals[-1550:] = 3.0, Z  # a ceiling of 1550 points at the room's top
+    scores = floor_scores(pts, normals, np.eye(3))
+    assert scores[5] - scores[4] == pytest.approx(0.075, abs=1e-3) and scores[5] < 2 * scores[4]
+    assert along(room_up(pts, normals, hint=Z).up, Z)
