@@ -179,6 +179,7 @@ TARGETS = (
             "tests/geometry/test_free_side.py",
             "tests/geometry/test_cloud.py",
             "tests/geometry/test_camera_view.py",
+            "tests/geometry/test_up_real.py",
         ),
     ),
     Target(

@@ -14,8 +14,8 @@ from tests.conftest import SHARED_DATA
 
 SCANNET = SHARED_DATA / "scannet"
 TURNS = {
-    "y up": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
-    "y down": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),
+    "y up": np.array([[1.0, 0, 0], [0, 0, 1], [0, -1, 0]]),  # z -> y
+    "y down": np.array([[1.0, 0, 0], [0, 0, -1], [0, 1, 0]]),
     "x up": np.array([[0, 0, 1.0], [0, 1, 0], [-1, 0, 0]]),
 }
 
