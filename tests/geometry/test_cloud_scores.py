@@ -322,6 +322,16 @@ def test_a_floor_open_above_wins_over_the_convention_s_axis_from_a_margin_of_0_0
     assert along(room_up(*room(floor=699, wall=600), hint=X).up, X)  # 0.0699: the convention stays
     assert along(room_up(*room(floor=750, wall=740), hint=X).up, Z)
     assert along(room_up(*room(floor=750, wall=760), hint=X).up, X)  # the wall's margin is larger
+    assert along(room_up(*room(floor=750, wall=750), hint=X).up, X)  # equal margins: the convention stays
+
+
+def test_of_two_open_floors_across_the_convention_the_larger_margin_wins():
+    # the convention names y, which scores nothing; the floor (0.09) and the wall (0.08) both qualify, and
+    # neither is sure enough of itself to overrule (confidence 0.11)
+    scores = floor_scores(*room(floor=900, wall=800), np.eye(3))
+    assert scores[4] == pytest.approx(0.09) and scores[0] == pytest.approx(0.08, abs=1e-3)
+    assert along(room_up(*room(floor=900, wall=800), hint=Y).up, Z)
+    assert along(room_up(*room(floor=800, wall=900), hint=Y).up, X)
 
 
 def test_an_open_floor_needs_four_fifths_of_the_convention_s_score():
@@ -347,3 +357,5 @@ def test_a_ceiling_seen_better_than_the_floor_does_not_turn_the_room_upside_down
     scores = floor_scores(pts, normals, np.eye(3))
     assert scores[5] - scores[4] == pytest.approx(0.075, abs=1e-3) and scores[5] < 2 * scores[4]
     assert along(room_up(pts, normals, hint=Z).up, Z)
+    mirrored = pts * [1.0, 1.0, -1.0]  # the same room mirrored, read with the convention -z
+    assert along(room_up(mirrored, normals, hint=-Z).up, -Z)
