@@ -267,6 +267,7 @@ def estimate(
         room_rules.low_walls_are_furniture(cuboids, points, room.up.up)
         seen = room_rules.BEYOND_SHARE if inp.views == "none" else room_rules.BEYOND_SHARE_SEEN
         room_rules.beyond_the_room_is_wall(cuboids, points, room.up.up, seen)
+        room_rules.open_behind_is_wall(cuboids, points, room.up.up, inp.viewpoint)
         room_rules.low_slabs_are_floor(cuboids, room.up.up)
     timing["total"] = time.perf_counter() - inp.started
     t = time.perf_counter()

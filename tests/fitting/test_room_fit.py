@@ -324,6 +324,20 @@ def test_a_sequence_is_held_to_its_outline_more_loosely_than_a_scan(parts, monke
     assert shares == [room_module.BEYOND_SHARE, room_module.BEYOND_SHARE_SEEN]
 
 
+def test_the_room_s_slabs_open_behind_are_judged_from_inside_it(parts, monkeypatch):
+    """After the outline rule the fit asks each object slab what lies behind it, seen from the room's inside
+    point: the cameras' mean position for a sequence."""
+    import cuboidcli.fitting.room as room_module
+
+    seen = []
+    monkeypatch.setattr(room_module, "open_behind_is_wall", lambda *a: seen.append(a))
+    points = scanned_room()
+    _fit(parts, points, np.tile([2.0, 1.5, 1.2], (len(points), 1)), max_cuboids=2)
+    cuboids, fitting_points, up, viewpoint = seen[0]
+    assert len(cuboids) == 2 and fitting_points.shape[1] == 3 and np.allclose(up, [0.0, 0.0, 1.0], atol=0.02)
+    np.testing.assert_allclose(viewpoint, [2.0, 1.5, 1.2])
+
+
 def test_the_real_living_room_fragment_stands_upright_without_an_up_hint():
     """The real living-room fragment is stored in a camera's frame (y down): fitted with no --up, its large
     wall is a wall (not a ceiling, as with z up), and the fit says in one warning that its up is unsure."""
