@@ -66,16 +66,18 @@ BEYOND_SHARE_SEEN = 0.45
 #: tables, with tops from 0.34 m up (docs/scenes.md).
 LOW_SLAB_TOP_M = 0.25
 LOW_SLAB_AREA_M2 = 0.5
-#: An object cuboid that is an upright slab at most :data:`OPEN_SLAB_THICK_M` thick and at least
-#: :data:`OPEN_SLAB_LONG_M` long, with at most :data:`OPEN_BEHIND_SHARE` of its own points' number lying
-#: behind it (seen from inside the room, :data:`OPEN_BEHIND_M` beyond its back face, along its length, at any
-#: height), is a wall: a stretch of wall whose upper part the scan missed or another cuboid took, which the
-#: low-wall rule made furniture. What stands in the room has the room behind it, and what stands against a
-#: wall has the wall behind it above its top; the floor lies behind a bed's side. On the saved fits of the 10
-#: real ScanNet scans and their sequences (seeds 0-4, grouped again) precision 76.7 -> 78.0 % (scans) and
-#: 76.0 -> 76.4 % (sequences), recall 64.3 -> 64.2 % and 58.4 -> 58.8 % (docs/scenes.md).
-OPEN_SLAB_THICK_M = 0.3
-OPEN_SLAB_LONG_M = 1.2
+#: An object cuboid that is an upright slab of a size in :data:`OPEN_SLABS`, with at most
+#: :data:`OPEN_BEHIND_SHARE` of its own points' number lying behind it (seen from inside the room,
+#: :data:`OPEN_BEHIND_M` beyond its back face, along its length, at any height), is a wall: a stretch of wall
+#: whose upper part the scan missed or another cuboid took, which the low-wall rule made furniture, or a
+#: wall fitted with the depth of what stands before it. What stands in the room has the room behind it, and
+#: what stands against a wall has the wall behind it above its top; the floor lies behind a bed's side. On
+#: the saved fits of the 10 real ScanNet scans and their sequences (seeds 0-4, grouped again) precision
+#: 76.7 -> 78.0 % (scans) and 76.0 -> 76.7 % (sequences), recall 64.3 -> 64.2 % and 58.4 -> 58.6 %
+#: (docs/scenes.md).
+#: (thickness at most, length at least) in m: a thin slab of a wall's height or less, or a slab as long as
+#: a room's wall whatever its depth up to 1 m (furniture that long stands before a wall, which is behind it).
+OPEN_SLABS = ((0.3, 1.2), (1.0, 4.0))
 #: ... upright: the cosine of its thin axis with up below this (within 11.5 degrees of level).
 OPEN_SLAB_TILT_COS = 0.2
 OPEN_BEHIND_SHARE = 0.05
@@ -209,18 +211,18 @@ def beyond_the_room_is_wall(
 def open_behind_is_wall(
     cuboids: list[Cuboid], points: np.ndarray, up: np.ndarray, viewpoint: np.ndarray
 ) -> None:
-    """Object cuboids that are long, thin upright slabs with (almost) nothing behind them, seen from
-    ``viewpoint`` (3,) inside the room, become ``wall`` (:data:`OPEN_SLAB_THICK_M`): ``points`` (N, 3) are
-    the room's fitting points and ``up`` (3,), unit, its up direction."""
+    """Object cuboids that are long upright slabs (:data:`OPEN_SLABS`) with (almost) nothing behind them,
+    seen from ``viewpoint`` (3,) inside the room, become ``wall``: ``points`` (N, 3) are the room's fitting
+    points and ``up`` (3,), unit, its up direction."""
     near, far = OPEN_BEHIND_M
     for c in (c for c in cuboids if c.kind == "object"):
         thin = int(np.argmin(c.half_size))
-        tilt = abs(float(c.rotation[:, thin] @ up))
-        if tilt >= OPEN_SLAB_TILT_COS or 2.0 * c.half_size[thin] > OPEN_SLAB_THICK_M:
+        if abs(float(c.rotation[:, thin] @ up)) >= OPEN_SLAB_TILT_COS:
             continue
         side = [a for a in range(3) if a != thin]
         along = min(side, key=lambda a: abs(float(c.rotation[:, a] @ up)))  # the slab's horizontal side
-        if 2.0 * c.half_size[along] < OPEN_SLAB_LONG_M:
+        thick, length = 2.0 * float(c.half_size[thin]), 2.0 * float(c.half_size[along])
+        if not any(thick <= t and length >= n for t, n in OPEN_SLABS):
             continue
         local = (points - c.center) @ c.rotation
         if float(c.rotation[:, thin] @ (c.center - viewpoint)) < 0:

@@ -8,13 +8,7 @@ import numpy as np
 import pytest
 
 from cuboidcli.cuboid import Cuboid
-from cuboidcli.fitting.room import (
-    OPEN_BEHIND_M,
-    OPEN_BEHIND_SHARE,
-    OPEN_SLAB_LONG_M,
-    OPEN_SLAB_THICK_M,
-    open_behind_is_wall,
-)
+from cuboidcli.fitting.room import OPEN_BEHIND_M, OPEN_BEHIND_SHARE, OPEN_SLABS, open_behind_is_wall
 
 UP = np.array([0.0, 0.0, 1.0])
 INSIDE = np.array([2.0, 1.5, 1.2])
@@ -102,11 +96,20 @@ def test_behind_is_away_from_the_viewpoint():
 
 @pytest.mark.parametrize(
     ("length", "thick", "kind"),
-    [(1.2, 0.04, "wall"), (1.18, 0.04, "object"), (2.0, 0.3, "wall"), (2.0, 0.32, "object")],
+    [
+        (1.2, 0.04, "wall"),
+        (1.18, 0.04, "object"),
+        (2.0, 0.3, "wall"),
+        (2.0, 0.32, "object"),
+        (3.9, 0.32, "object"),
+        (4.0, 0.32, "wall"),  # as long as a room's wall: up to 1 m deep
+        (4.0, 1.0, "wall"),
+        (4.0, 1.02, "object"),
+    ],
 )
-def test_it_must_be_long_and_thin(length, thick, kind):
-    assert (OPEN_SLAB_LONG_M, OPEN_SLAB_THICK_M) == (1.2, 0.3)
-    strip = slab(length=length, thick=thick)
+def test_it_must_be_thin_or_as_long_as_a_wall(length, thick, kind):
+    assert OPEN_SLABS == ((0.3, 1.2), (1.0, 4.0))
+    strip = slab(length=length, thick=thick, z=(0.0, 1.6))  # its height above its depth: upright
     assert kind_after(strip, own_points(strip)) == kind
 
 
