@@ -68,13 +68,13 @@ LOW_SLAB_TOP_M = 0.25
 LOW_SLAB_AREA_M2 = 0.5
 #: An object cuboid that is an upright slab of a size in :data:`OPEN_SLABS`, with at most
 #: :data:`OPEN_BEHIND_SHARE` of its own points' number lying behind it (seen from inside the room,
-#: :data:`OPEN_BEHIND_M` beyond its back face, along its length, at any height), is a wall: a stretch of wall
-#: whose upper part the scan missed or another cuboid took, which the low-wall rule made furniture, or a
-#: wall fitted with the depth of what stands before it. What stands in the room has the room behind it, and
-#: what stands against a wall has the wall behind it above its top; the floor lies behind a bed's side. On
-#: the saved fits of the 10 real ScanNet scans and their sequences (seeds 0-4, grouped again) precision
-#: 76.7 -> 78.0 % (scans) and 76.0 -> 76.7 % (sequences), recall 64.3 -> 64.2 % and 58.4 -> 58.6 %
-#: (docs/scenes.md).
+#: :data:`OPEN_BEHIND_M` beyond its back face, along its length, at any height), is a wall: a stretch of
+#: wall whose upper part the scan missed or another cuboid took, which the low-wall rule made furniture, or
+#: a wall fitted with the depth of a door's or window's recess in it. What stands in the room has the room
+#: behind it, and what stands against a wall has the wall behind it above its top; the floor lies behind a
+#: bed's side. On the saved fits of the 10 real ScanNet scans and their sequences (seeds 0-4, grouped
+#: again) precision 76.7 -> 78.0 % (scans) and 76.0 -> 76.7 % (sequences), recall 64.3 -> 64.2 % and
+#: 58.4 -> 58.6 % (docs/scenes.md).
 #: (thickness at most, length at least) in m: a thin slab of a wall's height or less, or a slab as long as
 #: a room's wall whatever its depth up to 1 m (furniture that long stands before a wall, which is behind it).
 OPEN_SLABS = ((0.3, 1.2), (1.0, 4.0))
