@@ -51,6 +51,7 @@ import numpy as np
 from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.basins import object_basins
 from cuboidcli.fitting.box import ROBUST_PERCENTILES
+from cuboidcli.fitting.door_leaves import door_leaves
 from cuboidcli.fitting.doors import door_walls
 from cuboidcli.fitting.floors import floor_heights
 from cuboidcli.fitting.nested import join_nested, join_under, rests_on
@@ -252,9 +253,12 @@ def group_objects(
     for i in shell:
         clear = floor_clear if cuboids[i].kind == "floor" else SHELL_CLEARANCE * voxel_m
         keep &= _outside_distance(points, cuboids[i]) > clear
-    doors = [  # before the candidates: a door's slab is the shell's (cuboidcli.fitting.doors)
+    # before the candidates: a door's slab or leaf is the shell's (cuboidcli.fitting.doors, .door_leaves)
+    found = door_walls(level, labels, cuboids, R, under, colors)
+    found += door_leaves(level, labels, cuboids, R, under, colors, [d[1] for d in found])
+    doors = [
         SceneObject(box, (i,), len(local), object_score(local, lo, hi, voxel_m, True))
-        for i, box, local, lo, hi in door_walls(level, labels, cuboids, R, under, colors)
+        for i, box, local, lo, hi in found
     ]
     idx = np.flatnonzero(keep)
     n = len(idx)
