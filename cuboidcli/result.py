@@ -112,9 +112,15 @@ class Result:
     @property
     def objects(self) -> list[Cuboid]:
         """A room's whole objects as upright boxes (a table with its legs), largest first;
-        ``extras["cuboids"]`` holds the indices of the cuboids each is made of. Empty for a frame."""
+        ``extras["cuboids"]`` holds the indices of the cuboids each is made of, ``extras["kind"]`` what it is
+        (``object``, ``door`` or ``sink``). Empty for a frame."""
         return [
-            Cuboid(o.box.center, o.box.half_size, o.box.rotation, extras={"cuboids": list(o.cuboids)})
+            Cuboid(
+                o.box.center,
+                o.box.half_size,
+                o.box.rotation,
+                extras={"cuboids": list(o.cuboids), "kind": o.kind},
+            )
             for o in self.info.objects
         ]
 

@@ -84,8 +84,8 @@ def build_scene(
     """A trimesh Scene with nodes ``cuboid_00``... and, if ``points`` (N, 3) m is given, a ``points`` node.
 
     ``objects``: a room's whole-object boxes, as translucent grey nodes ``whole_object_00``...; each node's
-    extras hold the box's parameters and ``cuboids``, the indices of the cuboids it is made of (from the
-    box's ``extras["cuboids"]``).
+    extras hold the box's parameters, ``cuboids``, the indices of the cuboids it is made of, and ``kind``
+    (from the box's ``extras``: ``object``, ``door`` or ``sink``).
 
     ``points`` are in OpenCV camera coordinates; ``point_colors`` (N, 3) uint8 RGB (grey if None).
     ``alpha`` in (0, 1] is the boxes' opacity (glTF BLEND mode below 1). With ``up`` (3,), the up
@@ -122,7 +122,8 @@ def build_scene(
             alphaMode="BLEND",
             doubleSided=True,
         )
-        extras = {"id": k, "cuboids": [int(i) for i in box.extras.get("cuboids", [])]}
+        extras = {"id": k, "kind": str(box.extras.get("kind", "object"))}
+        extras["cuboids"] = [int(i) for i in box.extras.get("cuboids", [])]
         scene.add_geometry(
             _box_mesh(box, material),
             node_name=name,

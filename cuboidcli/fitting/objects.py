@@ -115,13 +115,14 @@ SCORE_FLOATING = 0.7
 @dataclass
 class SceneObject:
     """One object of a room: its upright box (kind ``object``), the cuboids (indices in selection order) that
-    seeded it (none for points no cuboid explains), how many fitting points it holds and its score in
-    [0, 1] (:func:`object_score`)."""
+    seeded it (none for points no cuboid explains), how many fitting points it holds, its score in [0, 1]
+    (:func:`object_score`) and what it is: ``door`` (steps 8-9), ``sink`` (step 7) or ``object``."""
 
     box: Cuboid
     cuboids: tuple[int, ...]
     points: int
     score: float = 0.0
+    kind: str = "object"
 
     def to_dict(self, index: int) -> dict:
         c = self.box
@@ -134,6 +135,7 @@ class SceneObject:
             "cuboids": list(self.cuboids),
             "points": self.points,
             "score": round(float(self.score), 4),
+            "kind": self.kind,
         }
 
 
@@ -257,7 +259,7 @@ def group_objects(
     found = door_walls(level, labels, cuboids, R, under, colors)
     found += door_leaves(level, labels, cuboids, R, under, colors, [d[1] for d in found])
     doors = [
-        SceneObject(box, (i,), len(local), object_score(local, lo, hi, voxel_m, True))
+        SceneObject(box, (i,), len(local), object_score(local, lo, hi, voxel_m, True), "door")
         for i, box, local, lo, hi in found
     ]
     idx = np.flatnonzero(keep)
@@ -382,7 +384,9 @@ def group_objects(
             turn = _yaw_matrix(headings[g])
             for b_lo, b_hi, low in object_basins(q, q[:, 2] - under_q, members, turn, lo, hi, voxel_m):
                 sink = Cuboid(rotation @ ((b_lo + b_hi) / 2), (b_hi - b_lo) / 2, rotation, kind="object")
-                objects.append(SceneObject(sink, (), len(low), object_score(low, b_lo, b_hi, voxel_m, False)))
+                objects.append(
+                    SceneObject(sink, (), len(low), object_score(low, b_lo, b_hi, voxel_m, False), "sink")
+                )
     objects += doors
     objects.sort(key=lambda o: -o.points)
     return objects

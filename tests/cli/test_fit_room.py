@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import struct
 from pathlib import Path
 
 import numpy as np
@@ -51,6 +52,12 @@ def test_a_point_cloud_gives_a_world_frame_result_and_its_outputs(tmp_path):
     glb = trimesh.load(tmp_path / "room.glb")  # the cabinet's object: a translucent box beside the cuboids
     assert "whole_object_00" in glb.graph.nodes and len(glb.geometry) == len(kinds) + len(d["objects"])
     box = glb.geometry["whole_object_00"]
+    assert cabinet["kind"] == "object"
+    data = (tmp_path / "room.glb").read_bytes()
+    (length,) = struct.unpack("<I", data[12:16])
+    nodes = {n["name"]: n for n in json.loads(data[20 : 20 + length])["nodes"]}
+    assert nodes["whole_object_00"]["extras"]["kind"] == "object"
+    assert nodes["whole_object_00"]["extras"]["cuboids"] == cabinet["cuboids"]
     assert sorted(np.round(box.extents, 1)) == sorted(round(2 * v, 1) for v in cabinet["half_size"])
 
 

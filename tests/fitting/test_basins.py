@@ -216,6 +216,8 @@ def test_a_counter_with_a_sink_gives_a_second_object():
     assert len(objects) == 2
     counter, sink = sorted(objects, key=lambda o: -o.points)
     assert counter.cuboids == (1,) and sink.cuboids == ()
+    assert (counter.kind, sink.kind) == ("object", "sink")
+    assert sink.to_dict(1)["kind"] == "sink"
     corners = sink.box.corners()
     np.testing.assert_allclose(corners.min(0), [0.7, 0.1, 0.72], atol=2 * VOXEL)
     np.testing.assert_allclose(corners.max(0), [1.1, 0.5, 0.9], atol=2 * VOXEL)

@@ -174,6 +174,7 @@ def test_the_rooms_grouping_lists_the_door_with_its_wall():
     objects = group_objects(np.r_[pts, floor], labels, [WALL, FLOOR], UP, VOXEL, all_colors)
     (door,) = objects
     assert door.cuboids == (0,) and 0.0 < door.score <= 1.0 and door.points > LEAF_MIN_POINTS
+    assert door.kind == "door" and door.to_dict(0)["kind"] == "door"
     low, high = extent(door.box)
     assert high[0] - low[0] == pytest.approx(0.9, abs=0.11)
     assert group_objects(np.r_[pts, floor], labels, [WALL, FLOOR], UP, VOXEL) == []

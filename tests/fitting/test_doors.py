@@ -199,7 +199,7 @@ def test_the_room_grouping_lists_the_door_with_its_cuboid():
     pts, lab, cuboids, colors = _room(DOOR)
     objects = group_objects(pts, lab, cuboids, UP, VOXEL, colors)
     (door,) = [o for o in objects if o.cuboids == (1,)]
-    assert door.points == 200 and 0.0 < door.score <= 1.0
+    assert door.points == 200 and 0.0 < door.score <= 1.0 and door.kind == "door"
     assert not [o for o in group_objects(pts, lab, cuboids, UP, VOXEL) if o.cuboids == (1,)]
 
 

@@ -499,6 +499,7 @@ def test_a_box_with_the_walls_colour_needs_20_wall_inliers():
 def test_a_scene_object_defaults_to_a_score_of_zero():
     o = SceneObject(Cuboid(np.zeros(3), np.ones(3), np.eye(3)), (), 5)
     assert o.score == 0.0 and o.to_dict(0)["score"] == 0.0
+    assert o.kind == "object" and o.to_dict(0)["kind"] == "object"
 
 
 # --- not_objects ------------------------------------------------------------------------------------------
