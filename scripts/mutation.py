@@ -231,6 +231,7 @@ TARGETS = (
     Target("seats", "cuboidcli/fitting/seats.py", None, ("tests/fitting/test_seats.py",)),
     Target("nested", "cuboidcli/fitting/nested.py", None, ("tests/fitting/test_nested.py",)),
     Target("doors", "cuboidcli/fitting/doors.py", None, ("tests/fitting/test_doors.py",)),
+    Target("door_leaves", "cuboidcli/fitting/door_leaves.py", None, ("tests/fitting/test_door_leaves.py",)),
     # a room's outline from above, and the share of a box beyond it
     Target("plan", "cuboidcli/geometry/plan.py", None, ("tests/geometry/test_plan.py",)),
     # the rules that change a fitted room's kinds: low walls are furniture, boxes beyond the outline walls,

@@ -182,19 +182,30 @@ def edge_lines(boxes: list[np.ndarray], line: dict, **trace):
     return go.Scatter3d(x=ex, y=ey, z=ez, mode="lines", line=line, hoverinfo="skip", **trace)
 
 
+#: How a room's objects of each kind (``objects[i].kind``) are drawn, and their legend entry's name.
+OBJECT_STYLES = {
+    "object": ("black", "objects"),
+    "door": ("saddlebrown", "doors"),
+    "sink": ("royalblue", "sinks"),
+}
+
+
 def _add_objects(fig, result, pose: np.ndarray) -> None:
-    """A room's whole-object boxes (the JSON's ``objects``) as dashed black edges, one legend entry that
-    shows or hides them all."""
+    """A room's whole-object boxes (the JSON's ``objects``) as dashed edges, one legend entry for each kind
+    (furniture black, doors brown, sinks blue) that shows or hides them all."""
     objects = result.extras.get("objects") or []
-    if not objects:
-        return
-    boxes = []
+    by_kind: dict[str, list[np.ndarray]] = {}
     for o in objects:
         rot = pose[:3, :3] @ np.asarray(o["rotation"], dtype=np.float64)
         center = pose[:3, :3] @ np.asarray(o["center"], dtype=np.float64) + pose[:3, 3]
-        boxes.append(box_corners(center, np.asarray(o["half_size"], dtype=np.float64), rot))
-    line = {"color": "black", "width": 3, "dash": "dash"}
-    fig.add_trace(edge_lines(boxes, line, name=f"objects ({len(objects)})"))
+        kind = o.get("kind", "object") if o.get("kind") in OBJECT_STYLES else "object"
+        by_kind.setdefault(kind, []).append(
+            box_corners(center, np.asarray(o["half_size"], dtype=np.float64), rot)
+        )
+    for kind, (colour, name) in OBJECT_STYLES.items():
+        if by_kind.get(kind):
+            line = {"color": colour, "width": 3, "dash": "dash"}
+            fig.add_trace(edge_lines(by_kind[kind], line, name=f"{name} ({len(by_kind[kind])})"))
 
 
 def _layout(fig, eye: dict, frame: str):

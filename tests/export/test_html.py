@@ -151,3 +151,15 @@ def test_chromium_renders_the_point_cloud_page_not_blank(fitted, tmp_path):
     assert drawn.mean() > 0.1, drawn.mean()  # the 3D scene (axes' grey background, points, boxes)
     # the points are coloured by cuboid: the first cuboid's colour fills a large area
     assert colour_pixels(plot, palette_color(0), tol=20) > 2000
+
+
+def test_a_rooms_objects_are_drawn_by_kind(fitted):
+    box = {"center": [0.0, 0.0, 2.0], "half_size": [0.2, 0.3, 0.4], "rotation": np.eye(3).tolist()}
+    kinds = ["object", "door", "door", "sink", "shelf"]  # an unknown kind is drawn as furniture
+    objects = [{**box, "kind": k} for k in kinds] + [dict(box)]  # and so is an object without one
+    record = replace(fitted.record, extras={**fitted.record.extras, "objects": objects})
+    traces = {t.name: t for t in figure(record).data if t.type == "scatter3d" and t.mode == "lines"}
+    assert traces["objects (3)"].line.color == "black" and traces["doors (2)"].line.color == "saddlebrown"
+    assert traces["sinks (1)"].line.color == "royalblue"
+    assert all(t.line.dash == "dash" for t in traces.values() if "(" in t.name)
+    assert len(traces["doors (2)"].x) == 2 * 12 * 3  # two boxes, 12 edges, two ends and a break each

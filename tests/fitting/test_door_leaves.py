@@ -27,9 +27,9 @@ WALL = Cuboid([2.0, 4.0, 1.25], [2.0, 0.02, 1.25], np.eye(3), kind="wall")
 FLOOR = Cuboid([2.0, 2.0, -0.02], [2.0, 2.0, 0.02], np.eye(3), kind="floor")
 
 
-def wall_points(door=(1.5, 2.4), top=2.05, colour=WOOD, height=2.5, length=(0.0, 4.0), gap=None):
-    """The wall's face on a grid, white, with a door from ``door[0]`` to ``door[1]`` along x and from the
-    floor to ``top`` in ``colour``; no points between ``gap[0]`` and ``gap[1]`` along x."""
+def wall_points(door=(1.5, 2.4), top=2.05, colour=WOOD, height=2.5, length=(0.0, 4.0), gap=None, bottom=0.0):
+    """The wall's face on a grid, white, with a door from ``door[0]`` to ``door[1]`` along x and from
+    ``bottom`` to ``top`` in ``colour``; no points between ``gap[0]`` and ``gap[1]`` along x."""
     x, z = np.meshgrid(
         np.arange(length[0], length[1], STEP) + STEP / 2, np.arange(0.0, height, STEP) + STEP / 2
     )
@@ -37,7 +37,7 @@ def wall_points(door=(1.5, 2.4), top=2.05, colour=WOOD, height=2.5, length=(0.0,
     if gap is not None:
         x, z = x[(x < gap[0]) | (x > gap[1])], z[(x < gap[0]) | (x > gap[1])]
     pts = np.c_[x, np.full(len(x), 3.98), z]
-    on_door = (x >= door[0]) & (x <= door[1]) & (z <= top)
+    on_door = (x >= door[0]) & (x <= door[1]) & (z <= top) & (z >= bottom)
     colors = np.where(on_door[:, None], colour, WHITE)
     return pts, colors
 
@@ -104,6 +104,12 @@ def test_a_door_is_a_door_wide(door, found):
 )
 def test_the_colour_stops_at_a_doors_top(top, found):
     pts, colors = wall_points(top=top)  # 2.5: a stretch of the wall in another paint, floor to ceiling
+    assert bool(leaves(pts, colors)) == found
+
+
+@pytest.mark.parametrize(("bottom", "found"), [(0.0, True), (0.3, True), (0.5, False)])
+def test_the_colour_comes_down_to_the_floor(bottom, found):
+    pts, colors = wall_points(bottom=bottom)  # from 0.5 m: a screen or a panel on the wall, not a door
     assert bool(leaves(pts, colors)) == found
 
 
