@@ -184,3 +184,54 @@ def test_the_rooms_grouping_lists_the_door_with_its_wall():
     low, high = extent(door.box)
     assert high[0] - low[0] == pytest.approx(0.9, abs=0.11)
     assert group_objects(np.r_[pts, floor], labels, [WALL, FLOOR], UP, VOXEL) == []
+
+
+@pytest.mark.parametrize(("offset", "found"), [(0.05, True), (-0.05, True), (0.07, False), (-0.07, False)])
+def test_the_doors_points_lie_within_6_cm_of_the_walls_face(offset, found):
+    pts, colors = wall_points()
+    on_door = (colors == WOOD).all(axis=1)
+    pts[on_door, 1] += offset  # a leaf standing proud of its wall, or set back into its opening
+    assert bool(leaves(pts, colors)) == found
+
+
+@pytest.mark.parametrize(("missing", "found"), [((1.1, 1.7), True), ((0.7, 1.7), False)])
+def test_a_doors_columns_must_be_40_percent_filled(missing, found):
+    pts, colors = wall_points()
+    keep = ~((pts[:, 0] > 1.45) & (pts[:, 0] < 2.45) & (pts[:, 2] > missing[0]) & (pts[:, 2] < missing[1]))
+    # 0.6 / 1.5 or 1.0 / 1.5 of the columns' rows between 0.2 and 1.7 m left unseen
+    assert bool(leaves(pts[keep], colors[keep])) == found
+
+
+@pytest.mark.parametrize(("distance", "found"), [(40.0, False), (50.0, True)])
+def test_the_door_differs_from_the_wall_by_45(distance, found):
+    pts, colors = wall_points()
+    colors[(colors == WOOD).all(axis=1)] = WHITE - [distance, 0.0, 0.0]
+    assert bool(leaves(pts, colors)) == found
+
+
+def test_the_box_is_20_cm_deep_and_a_door_within_30_cm_is_known():
+    pts, colors = wall_points()
+    (door,) = leaves(pts, colors)
+    low, high = extent(door[1])
+    assert high[1] - low[1] == pytest.approx(0.2)
+    for shift, found in ((0.25, False), (0.35, True)):
+        known = Cuboid(door[1].center + [shift, 0.0, 0.0], [0.4, 0.1, 1.0], np.eye(3))
+        assert bool(leaves(pts, colors, known=(known,))) == found
+
+
+def test_points_below_the_floor_or_above_2_4_m_are_not_looked_at():
+    pts, colors = wall_points(height=3.5)  # the wall goes on to 3.5 m, white
+    below = pts[pts[:, 2] < 0.6] - [0.0, 0.0, 0.6]  # a reflection under the floor, in the door's colour
+    wood = np.tile(WOOD, (len(below), 1))
+    (door,) = leaves(np.r_[pts, below], np.r_[colors, wood])
+    low, high = extent(door[1])
+    assert low[2] == pytest.approx(0.0) and high[2] == pytest.approx(2.05, abs=0.08)
+
+
+@pytest.mark.parametrize(("end", "found"), [(2.45, True), (2.1, False)])
+def test_the_band_reaches_30_cm_beyond_the_walls_inliers(end, found):
+    pts, colors = wall_points()
+    labels = np.where(pts[:, 0] <= end, 0, -1)  # the wall's cuboid took its points only up to ``end``
+    # up to 2.45 m: the band reaches 2.75 m, past the door's right side (2.5-2.8 m); up to 2.1 m it stops
+    # at 2.4 m, and the wall beside the door is never seen
+    assert bool(leaves(pts, colors, labels=labels)) == found
