@@ -57,6 +57,14 @@ def result_record(
     return FitResult(inp.camera, out, settings, timing, inp.meta, extras, frame="world")
 
 
+def objects_summary(objects) -> str:
+    """A room's objects in words: ``55 objects (3 doors, 1 sink)``, the doors and sinks among them counted
+    (``objects``: the fit's :class:`~cuboidcli.fitting.objects.SceneObject` list)."""
+    kinds = [o.kind for o in objects]
+    named = [f"{kinds.count(k)} {k}{'s' * (kinds.count(k) != 1)}" for k in ("door", "sink") if k in kinds]
+    return f"{len(kinds)} object{'s' * (len(kinds) != 1)}" + (f" ({', '.join(named)})" if named else "")
+
+
 @dataclass(repr=False)
 class Result:
     """One fitted frame or room: the cuboids, how they were found, and the data the outputs are made from.
@@ -204,7 +212,7 @@ class Result:
 
     def __repr__(self) -> str:
         kinds = sorted({c.kind for c in self.cuboids})
-        objects = f"; {len(self.info.objects)} objects" if self.kind == "room" else ""
+        objects = f"; {objects_summary(self.info.objects)}" if self.kind == "room" else ""
         return (
             f"Result({len(self.cuboids)} cuboids: {', '.join(kinds) or 'none'}{objects}; "
             f"{self.info.n_points} points, stop: {self.info.stop_reason}, "

@@ -236,3 +236,18 @@ def test_a_photo_gets_its_camera_from_exif_and_a_warning_without_one(tmp_path):
         bare = fitter.fit(tmp_path / "bare.jpg")
     assert len(caught) == 1 and len(bare.cuboids) == 1
     assert bare.record.input["intrinsics_source"].startswith("default:")
+
+
+def test_a_rooms_objects_in_words_count_its_doors_and_sinks():
+    from cuboidcli.fitting.objects import SceneObject
+    from cuboidcli.result import objects_summary
+
+    box = cb.Cuboid(np.zeros(3), np.ones(3), np.eye(3))
+
+    def objects(*kinds):
+        return [SceneObject(box, (), 10, 0.5, kind) for kind in kinds]
+
+    assert objects_summary([]) == "0 objects"
+    assert objects_summary(objects("object")) == "1 object"
+    assert objects_summary(objects("object", "door", "object")) == "3 objects (1 door)"
+    assert objects_summary(objects("sink", "door", "door", "object")) == "4 objects (2 doors, 1 sink)"

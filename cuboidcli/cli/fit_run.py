@@ -14,6 +14,7 @@ from cuboidcli.cli.common import check_writable, console, fail, out
 from cuboidcli.cli.fit_request import FitRequest
 from cuboidcli.cli.scale_options import end_of_run, run_with_progress
 from cuboidcli.job import FolderRecording, Job
+from cuboidcli.result import objects_summary
 
 
 def check_extras(kinds: tuple[str, ...]) -> None:
@@ -150,7 +151,7 @@ def print_fit(res, written: list[Path]) -> None:
         how = f"{info.voxel_m * 100:.1f} cm voxels, {info.visibility} visibility, up {info.room_up.source}"
         out.print(
             f"fitted {len(res.cuboids)} cuboids to {info.n_points} points ({how}) in {t['total']:.2f} s "
-            f"(reading {t.get('load', 0.0):.2f} s); {len(info.objects)} objects; stop: {info.stop_reason}"
+            f"(reading {t.get('load', 0.0):.2f} s); {objects_summary(info.objects)}; stop: {info.stop_reason}"
         )
     else:
         out.print(
