@@ -64,8 +64,8 @@ LEAF_DEPTH_M = 0.2
 #: colour.
 LEAF_TOP_PERCENTILE = 97.0
 #: A door reaches the floor: the heights' percentile opposite :data:`LEAF_TOP_PERCENTILE` is at most this
-#: high (m). On the saved fits of seeds 0-4 the doors found reach 0.02-0.34 m; a refrigerator's door in a
-#: wall's plane, 0.41 m, and a screen on a wall do not.
+#: high (m). On the saved fits of seeds 0-4 the doors found reach 0.02-0.34 m, a refrigerator's door in a
+#: wall's plane 0.41 m; a screen or a picture on a wall starts higher still.
 LEAF_FOOT_M = 0.4
 #: The band reaches this high above the floor (m), and this far beyond the wall's inliers along it (m).
 LEAF_REACH_M = (2.4, 0.3)
