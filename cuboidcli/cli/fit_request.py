@@ -79,6 +79,8 @@ class FitRequest:
         """One line and exit 2 for an option that does not apply to this input."""
         if self.config.solver == "onnx" and self.onnx is None:
             fail("--solver onnx needs --onnx solver.onnx (make one with cuboids export --onnx)")
+        if self.onnx is not None and self.config.solver != "onnx":
+            fail(f"--onnx {self.onnx}: the solver is {self.config.solver}; --onnx applies to --solver onnx")
         if (self.run.workers > 1 or self.run.ray is not None) and not self.folder:
             fail(
                 "--workers and --ray fit the inputs of a folder: give a folder of depth maps, images or rooms"

@@ -129,6 +129,10 @@ def test_option_errors(tmp_path, room_png):
     assert r.exit_code == 2 and "--depth" in r.output
     r = run("fit", "--depth", room_png, "--solver", "onnx")
     assert r.exit_code == 2 and "--onnx" in r.output
+    out = tmp_path / "ignored.json"  # an ONNX file for another solver: refused, not dropped without a word
+    r = run("fit", "--depth", room_png, "--onnx", tmp_path / "s.onnx", "-o", out)
+    assert r.exit_code == 2 and "--onnx applies to --solver onnx" in r.output and not out.exists()
+    assert len(r.output.strip().splitlines()) == 1
 
 
 def test_depth_formats_npy_npz_exr(tmp_path, room_depth):
