@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -22,7 +22,7 @@ from cuboidcli.cuboid import Cuboid
 from cuboidcli.fitting.align import align_winner
 from cuboidcli.fitting.assign import OCCLUDED, assign_points
 from cuboidcli.fitting.backend import NumbaBackend, backend_for
-from cuboidcli.fitting.box import Scored, StepContext, score_params
+from cuboidcli.fitting.box import Scored, StepContext, not_lines, score_params
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.fit_input import FitInput
 from cuboidcli.fitting.objects import SceneObject, group_objects
@@ -215,7 +215,9 @@ def fit_points(
             timing["refine"] = timing.get("refine", 0.0) + t5 - t4
             t4 = t5
         if alignment is not None:
-            winner = align_winner(winner, step, alignment)
+            aligned = align_winner(winner, step, alignment)
+            # a box that aligning made a line stays as it was (fitting.box.not_lines)
+            winner = aligned if not_lines(aligned.box.half, sp.tau)[0] else replace(winner, kind="free")
             info.aligned.append(winner.kind)
             t5 = time.perf_counter()
             timing["align"] = timing.get("align", 0.0) + t5 - t4

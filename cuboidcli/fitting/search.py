@@ -1,7 +1,7 @@
 """One step's search for its best hypothesis (paper Sec. 3.2, Fig. 3): batches of minimal sets are drawn
 by the sampler, solved by the solver and scored by the backend until the best one gains Theta or adaptive
 termination says nothing would (:func:`miss_probability`). Hypotheses that collapsed to a line
-(:func:`not_lines`) are not scored."""
+(:func:`~cuboidcli.fitting.box.not_lines`) are not scored."""
 
 from __future__ import annotations
 
@@ -11,27 +11,13 @@ import numpy as np
 
 from cuboidcli.fitting.align import Alignment
 from cuboidcli.fitting.backend import ScoringBackend, backend_for
-from cuboidcli.fitting.box import Box
+from cuboidcli.fitting.box import Box, not_lines
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scoring import ScoreParams
 from cuboidcli.geometry.arrays import as_kind, cat, device_of, no_grad, numpy64
 from cuboidcli.geometry.inlier import INLIER_CUT
 from cuboidcli.sampling import Sampler, SamplingContext, draw_hypotheses, local_fraction_of
 from cuboidcli.solvers.base import CuboidSolver, solve_upright
-
-#: A hypothesis whose two smaller half-sizes are both under this share of the inlier threshold tau (m;
-#: 3.2 mm at the default tau) is a line, not a box. Six points along a row of chair seats or a table's edge
-#: make the solver shrink two of the box's sides to its lower bound; the line then explains the points
-#: within tau of it, occludes nothing, and wins a step in long rows of furniture (1-3 of the cuboids of
-#: scene0004_00, a room of chairs, at seeds 0-4, each 4 m long). A cuboid abstracts a surface or a solid;
-#: a line explains neither.
-LINE_SHARE = 0.05
-
-
-def not_lines(half_sizes, tau_sq_m2: float) -> np.ndarray:
-    """(H,) bool: the hypotheses of ``half_sizes`` (H, 3) that are not lines (:data:`LINE_SHARE`)."""
-    half = np.sort(numpy64(half_sizes), axis=1)
-    return half[:, 1] >= LINE_SHARE * float(np.sqrt(tau_sq_m2))
 
 
 def solve_sets(solver: CuboidSolver, sets, config: FitConfig, alignment: Alignment | None):

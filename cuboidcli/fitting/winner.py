@@ -14,7 +14,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from cuboidcli.fitting.box import ROBUST_PERCENTILES, Box, Scored, StepContext
+from cuboidcli.fitting.box import ROBUST_PERCENTILES, Box, Scored, StepContext, not_lines
 from cuboidcli.fitting.refit import refit_box
 from cuboidcli.geometry.arrays import as_kind, cast_like, copy, count, float64, numpy64, randperm
 
@@ -41,17 +41,20 @@ PULL_BACK_LOSS = 1e-3
 def refine_winner(scored: Scored, ctx: StepContext) -> Scored:
     """Refine the winner on the points it newly explains, grow it face by face (:func:`grow_cuboid`), and
     refine the grown box again. Each result is kept only if the gain holds. A slab is also tried turned to
-    the tightest rectangle around its points (:func:`square_slab`), grown and refined the same way."""
+    the tightest rectangle around its points (:func:`square_slab`), grown and refined the same way. A box
+    that refining or growing made a line (:func:`~cuboidcli.fitting.box.not_lines`) is not kept: the
+    winner stays as it was drawn."""
+    drawn = scored
     scored = _refine_once(scored, ctx)
-    if ctx.config.grow_rounds < 1:
-        return scored
-    best = _grow_and_refine(scored, ctx)
-    square = square_slab(scored, ctx)
-    if square is not None:
-        other = _grow_and_refine(ctx.score(square), ctx)
-        if other.gain >= SQUARE_KEEP * best.gain:
-            best = other
-    return best
+    best = scored
+    if ctx.config.grow_rounds >= 1:
+        best = _grow_and_refine(scored, ctx)
+        square = square_slab(scored, ctx)
+        if square is not None:
+            other = _grow_and_refine(ctx.score(square), ctx)
+            if other.gain >= SQUARE_KEEP * best.gain:
+                best = other
+    return best if not_lines(best.box.half, ctx.sp.tau)[0] else drawn
 
 
 def _grow_and_refine(scored: Scored, ctx: StepContext) -> Scored:

@@ -1,13 +1,17 @@
-"""A hypothesis that collapsed to a line is not scored: the step picks the best box instead."""
+"""A hypothesis that collapsed to a line is not scored: the step picks the best box instead; a winner that
+refining would make a line stays as it was drawn."""
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import torch
 
 from cuboidcli.fitting.backend import backend_for
+from cuboidcli.fitting.box import not_lines
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.scoring import ScoreParams
-from cuboidcli.fitting.search import not_lines, search_step
+from cuboidcli.fitting.search import search_step
 from cuboidcli.sampling import SamplingContext, UniformSampler
 
 
@@ -15,8 +19,8 @@ def test_not_lines_keeps_boxes_and_plates_and_drops_lines():
     half = np.array(
         [
             [2.0, 0.001, 0.001],  # the solver's lower bound on two sides: a line
-            [0.3, 0.003, 0.002],  # both under a twentieth of tau (3.2 mm): a line
-            [0.3, 0.0033, 0.001],  # a plate 6.6 mm wide: kept
+            [0.3, 0.006, 0.002],  # both under a tenth of tau (6.3 mm): a line
+            [0.3, 0.0065, 0.001],  # a plate 13 mm wide: kept
             [1.0, 0.8, 0.001],  # a plate: kept
             [0.2, 0.3, 0.4],  # a box: kept
         ]
@@ -74,3 +78,39 @@ def test_a_batch_of_lines_only_gives_no_hypothesis():
 
     gain, best, batches = _step(Lines())
     assert (gain, best, batches) == (-np.inf, None, 1)
+
+
+def test_a_winner_refined_into_a_line_stays_as_drawn(monkeypatch):
+    from cuboidcli.fitting import winner as W
+    from cuboidcli.fitting.box import Box, Scored
+
+    def scored(half):
+        box = Box(torch.zeros(1, 3), torch.tensor([half]), torch.eye(3)[None])
+        return Scored(box, torch.zeros(5), 10.0)
+
+    drawn = scored([1.0, 0.2, 0.05])
+    ctx = SimpleNamespace(config=SimpleNamespace(grow_rounds=0), sp=ScoreParams())
+    monkeypatch.setattr(W, "_refine_once", lambda s, c: scored([2.0, 0.004, 0.001]))
+    assert W.refine_winner(drawn, ctx) is drawn
+    plate = scored([2.0, 0.3, 0.001])
+    monkeypatch.setattr(W, "_refine_once", lambda s, c: plate)
+    assert W.refine_winner(drawn, ctx) is plate
+
+
+def test_a_winner_aligned_into_a_line_stays_as_it_was(room_depth, nyu_camera, monkeypatch):
+    from dataclasses import replace
+
+    from cuboidcli.fitting import pipeline
+    from cuboidcli.fitting.box import Box
+    from tests.conftest import fit_named
+
+    def to_line(scored, ctx, alignment):
+        c, a, r = scored.box.numpy()
+        line = Box.from_numpy(c, np.array([a.max(), 0.001, 0.001]), r, like=scored.box.center)
+        return replace(scored, box=line, kind="manhattan")
+
+    monkeypatch.setattr(pipeline, "align_winner", to_line)
+    cuboids, info = fit_named(room_depth[0], nyu_camera, FitConfig(seed=0, hypotheses=256, max_cuboids=3))
+    assert len(cuboids) == 3
+    assert all(np.sort(c.half_size)[1] > 0.05 for c in cuboids)
+    assert info.aligned == ["free"] * 3
