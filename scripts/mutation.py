@@ -183,6 +183,12 @@ TARGETS = (
         ),
     ),
     Target(
+        "free_side",
+        "cuboidcli/geometry/free_side.py",
+        None,
+        ("tests/geometry/test_free_side.py", "tests/geometry/test_cloud_more.py"),
+    ),
+    Target(
         "graph",
         "cuboidcli/geometry/graph.py",
         None,

@@ -28,7 +28,8 @@ from cuboidcli.fitting.fit_input import FitInput, RoomFitting
 from cuboidcli.fitting.floors import floor_heights
 from cuboidcli.fitting.room_backend import RoomBackend
 from cuboidcli.fitting.seats import is_level_slab
-from cuboidcli.geometry.cloud import estimate_normals, free_side_normals, room_up, voxel_groups
+from cuboidcli.geometry.cloud import estimate_normals, room_up, voxel_groups
+from cuboidcli.geometry.free_side import free_side_normals
 from cuboidcli.geometry.gravity import level_frame
 from cuboidcli.geometry.plan import room_outline, share_beyond
 from cuboidcli.geometry.room import RoomPoints
@@ -259,7 +260,7 @@ def free_side_viewpoints(
     points: np.ndarray, normals: np.ndarray, inside: np.ndarray, distance_m: float, cell_m: float
 ) -> np.ndarray:
     """(N, 3) a viewpoint per point of a bare cloud, ``distance_m`` out of its surface on the side it was
-    seen from (:func:`cuboidcli.geometry.cloud.free_side_normals`: where rays cross empty space, else
+    seen from (:func:`cuboidcli.geometry.free_side.free_side_normals`: where rays cross empty space, else
     towards ``inside``)."""
     return points + distance_m * free_side_normals(points, normals, inside, cell_m)
 

@@ -14,7 +14,7 @@ from cuboidcli.evaluation.iou import box_iou
 from cuboidcli.fitting.config import FitConfig
 from cuboidcli.fitting.pipeline import fit_room
 from cuboidcli.fitting.room import fitting_voxels
-from cuboidcli.geometry.cloud import free_side_normals
+from cuboidcli.geometry.free_side import free_side_normals
 from tests.conftest import simple_room
 
 CABINET = Cuboid(np.array([0.45, 2.0, 0.5]), np.array([0.3, 0.6, 0.5]), np.eye(3))

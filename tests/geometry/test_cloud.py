@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from cuboidcli.geometry.cloud import estimate_normals, is_camera_view, room_up, voxel_groups
+from cuboidcli.geometry.cloud import estimate_normals, floor_scores, is_camera_view, room_up, voxel_groups
 from cuboidcli.geometry.gravity import level_frame
 
 Z = np.array([0.0, 0.0, 1.0])
@@ -57,12 +57,20 @@ def test_a_clear_floor_overrides_a_wrong_hint():
     assert _angle(up.up, turn[:, 2]) < 0.5 and up.source == "estimated"
 
 
-def test_a_low_margin_the_hint_agrees_with_is_no_warning():
-    """A floor and four tall walls, no ceiling: the floor wins by a small margin; the input's own up agrees,
-    so the confidence is low but nothing is said (a warning on every small room would be noise)."""
-    up = _up(_room(size=(4.0, 3.0, 2.5), floor=8000, wall=5000))
-    assert _angle(up.up, Z) < 1.0 and up.confidence < 0.25
-    assert not up.warning
+def test_a_floor_the_walls_nearly_tie_with_is_sure_when_nothing_faces_it():
+    """A floor and four tall walls, no ceiling: the floor scores little more than a wall, but each wall faces
+    another one and the floor nothing, so the cloud is sure of it. With a ceiling as large as the floor the
+    two tie: the input's own up picks, with a warning."""
+    room = _room(size=(4.0, 3.0, 2.5), floor=8000, wall=5000)
+    means = voxel_groups(room, 0.05)[0]
+    normals = estimate_normals(means, 0.15)
+    ok = np.linalg.norm(normals, axis=1) > 0.5
+    scores = np.sort(floor_scores(means[ok], normals[ok], np.eye(3)))
+    assert 1.0 - scores[-2] / scores[-1] < 0.25  # by the scores alone: unsure
+    up = _up(room)
+    assert _angle(up.up, Z) < 1.0 and up.confidence > 0.9 and not up.warning
+    closed = _up(_room(size=(4.0, 3.0, 2.5), floor=8000, wall=5000, ceiling=8000))
+    assert _angle(closed.up, Z) < 1.0 and closed.confidence < 0.25 and "up direction unsure" in closed.warning
 
 
 def test_in_a_near_tie_the_hint_decides_and_is_reported_unsure():
@@ -77,12 +85,12 @@ def test_in_a_near_tie_the_hint_decides_and_is_reported_unsure():
 def test_a_floor_open_above_wins_over_a_wall_the_convention_names():
     """The same cube without its ceiling: the floor and the walls score alike, but only the floor has
     nothing facing it (a scan seldom holds its ceiling; each wall faces another). A file read with the
-    wrong convention (up along a wall) is still fitted floor-down, with a warning: the scores tie."""
+    wrong convention (up along a wall) is still fitted floor-down, and sure of it."""
     room = _room(size=(3.0, 3.0, 3.0), floor=3000, wall=3000)
     for hint in (Z, np.array([1.0, 0.0, 0.0]), np.array([0.0, -1.0, 0.0])):
         up = _up(room, hint)
         assert _angle(up.up, Z) < 1.0 and up.source == "estimated"
-        assert up.confidence < 0.25 and "up direction unsure" in up.warning
+        assert up.confidence > 0.9 and not up.warning
 
 
 def _depth_view(seed=0):

@@ -13,18 +13,17 @@ import pytest
 
 from cuboidcli.geometry.cloud import (
     RoomUp,
-    _free_lengths,
     _reorder,
     _support,
     estimate_normals,
     floor_normal,
     floor_scores,
-    free_side_normals,
     is_camera_view,
     room_up,
     settle_axis,
     voxel_groups,
 )
+from cuboidcli.geometry.free_side import _free_lengths, free_side_normals
 from tests.geometry.test_cloud_scores import N, room, tilted
 from tests.geometry.test_free_side import INSIDE, box_room, plate
 

@@ -12,7 +12,7 @@ import pytest
 from cuboidcli.geometry.cloud import (
     ROOM_HEIGHT_M,
     TIE,
-    _cone,
+    _confidence,
     floor_normal,
     floor_scores,
     is_camera_view,
@@ -20,6 +20,7 @@ from cuboidcli.geometry.cloud import (
     settle_axis,
     voxel_groups,
 )
+from cuboidcli.geometry.free_side import _cone
 
 N = 10_000
 X, Y, Z = np.eye(3)
@@ -359,3 +360,16 @@ def test_a_ceiling_seen_better_than_the_floor_does_not_turn_the_room_upside_down
     assert along(room_up(pts, normals, hint=Z).up, Z)
     mirrored = pts * [1.0, 1.0, -1.0]  # the same room mirrored, read with the convention -z
     assert along(room_up(mirrored, normals, hint=-Z).up, -Z)
+
+
+def test_the_confidence_is_the_clearer_of_the_scores_and_the_open_floor():
+    """Order +a0, -a0, +a1, -a1, +a2, -a2. A floor open above counts from OPEN_FLOOR (0.07) of margin."""
+    scores = np.array([0.10, 0.0, 0.06, 0.04, 0.0, 0.0])
+    # by score 1 - 0.06 / 0.10 = 0.4; by margin (0.10 against the next axis's 0.06 - 0.04) 0.8
+    assert _confidence(scores, 0) == pytest.approx(0.8)
+    # a margin of 0.05 is no floor open above: the scores alone, and the wall outscores it
+    assert _confidence(np.array([0.05, 0.0, 0.06, 0.045, 0.0, 0.0]), 0) == 0.0
+    # a ceiling as large as the floor: no margin, the scores alone
+    assert _confidence(np.array([0.10, 0.10, 0.06, 0.04, 0.0, 0.0]), 0) == 0.0
+    assert _confidence(np.array([0.10, 0.0, 0.0, 0.0, 0.0, 0.0]), 0) == 1.0
+    assert _confidence(np.zeros(6), 0) == 0.0

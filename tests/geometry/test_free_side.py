@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cuboidcli.geometry.cloud import _free_lengths, free_side_normals
+from cuboidcli.geometry.free_side import _free_lengths, free_side_normals
 
 INSIDE = np.array([3.6, 2.0, 1.5])
 
