@@ -298,12 +298,15 @@ def _confidence(scores: np.ndarray, pick: int) -> float:
 
 def _open_floor(scores: np.ndarray, near: int) -> int:
     """The signed axis (index into ``scores``, :func:`floor_scores`' order) across the axis ``near`` of the
-    input's convention whose floor is open above and beats it (:data:`OPEN_FLOOR`), else ``near``."""
+    input's convention whose floor is open above and beats it (:data:`OPEN_FLOOR`), else ``near``. A
+    convention with no floor at all may also give way to its own axis reversed: a scan stored upside down
+    whose ceiling was not scanned (a ceiling scanned whole over a floor that furniture hides would read as
+    a floor open above, so a convention that has a floor is never reversed)."""
     margin = scores - scores[np.arange(6) ^ 1]  # each axis's score less its opposite's
     across = [
         k
         for k in range(6)
-        if k // 2 != near // 2
+        if (k // 2 != near // 2 or scores[near] <= 0)
         and margin[k] >= OPEN_FLOOR
         and margin[k] > margin[near]
         and scores[k] >= OPEN_SHARE * scores[near]

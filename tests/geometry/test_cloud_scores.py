@@ -13,6 +13,7 @@ from cuboidcli.geometry.cloud import (
     ROOM_HEIGHT_M,
     TIE,
     _confidence,
+    _open_floor,
     floor_normal,
     floor_scores,
     is_camera_view,
@@ -360,6 +361,21 @@ def test_a_ceiling_seen_better_than_the_floor_does_not_turn_the_room_upside_down
     assert along(room_up(pts, normals, hint=Z).up, Z)
     mirrored = pts * [1.0, 1.0, -1.0]  # the same room mirrored, read with the convention -z
     assert along(room_up(mirrored, normals, hint=-Z).up, -Z)
+
+
+def test_a_convention_with_no_floor_at_all_gives_way_to_its_own_axis_reversed():
+    """A room stored upside down whose ceiling was not scanned: the convention's axis (-z here) has no floor
+    at all, and the floor (0.09) outscores the wall (0.08) too little for the cloud to overrule. The open
+    floor, its margin the largest, wins although it lies along the convention's own axis."""
+    scores = floor_scores(*room(floor=900, wall=800), np.eye(3))
+    assert scores[5] == 0.0 and scores[4] == pytest.approx(0.09)
+    assert scores[0] == pytest.approx(0.08, abs=1e-3)
+    up = room_up(*room(floor=900, wall=800), hint=-Z)
+    assert along(up.up, Z) and up.source == "estimated"
+    # a convention with a floor of its own is never reversed, however open the floor opposite it
+    assert _open_floor(np.array([0.0, 0.0, 0.0, 0.0, 0.10, 0.02]), 5) == 5
+    assert _open_floor(np.array([0.0, 0.0, 0.0, 0.0, 0.10, 0.0]), 5) == 4
+    assert _open_floor(np.array([0.0, 0.0, 0.0, 0.0, 0.06, 0.0]), 5) == 5  # no floor open enough
 
 
 def test_the_confidence_is_the_clearer_of_the_scores_and_the_open_floor():
