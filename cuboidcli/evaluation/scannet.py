@@ -96,8 +96,9 @@ class ScanTruth:
     instance: np.ndarray | None
     semantic: np.ndarray | None
     up: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))
-    """(3,) the normal of the points labelled floor (:data:`FLOOR_CLASS`), signed towards +z; +z without
-    them. Some scans' floors are tilted in their frame (by up to 15 degrees)."""
+    """(3,) the normal of the points labelled floor (:data:`FLOOR_CLASS`), facing the room (most of the scan's
+    points lie on its side, whatever axis the file calls up); +z without them. Some scans' floors are
+    tilted in their frame (by up to 15 degrees)."""
 
 
 def read_truth(folder: str | os.PathLike, name: str) -> ScanTruth:
@@ -123,13 +124,14 @@ def read_truth(folder: str | os.PathLike, name: str) -> ScanTruth:
             raise ValueError(f"{name}{suffix}: {len(labels[-1])} labels for {len(points)} points")
     truth = ScanTruth(name, points, boxes, raw[:, 6].astype(np.int64), *labels)
     if truth.semantic is not None and np.sum(truth.semantic == FLOOR_CLASS) >= 100:
-        return replace(truth, up=_floor_normal(points[truth.semantic == FLOOR_CLASS]))
+        return replace(truth, up=_floor_normal(points[truth.semantic == FLOOR_CLASS], points))
     return truth
 
 
-def _floor_normal(floor: np.ndarray, band_m: float = 0.03) -> np.ndarray:
-    """(3,) the normal, towards +z, of the plane through points (N, 3) labelled floor: least squares,
-    twice refitted on the points within ``band_m`` of it (a rug or a mislabelled box stays out)."""
+def _floor_normal(floor: np.ndarray, points: np.ndarray, band_m: float = 0.03) -> np.ndarray:
+    """(3,) the normal of the plane through points (N, 3) labelled floor, towards the median of the scan's
+    ``points`` (M, 3) (a room stands on its floor): least squares, twice refitted on the points within
+    ``band_m`` of it (a rug or a mislabelled box stays out)."""
     keep = np.ones(len(floor), dtype=bool)
     for _ in range(3):
         centre = floor[keep].mean(0)
@@ -139,7 +141,8 @@ def _floor_normal(floor: np.ndarray, band_m: float = 0.03) -> np.ndarray:
         if near.sum() < 100:
             break
         keep = near
-    return normal * np.sign(normal[2])
+    side = float(np.median(points @ normal) - floor[keep].mean(0) @ normal)
+    return normal if side >= 0 else -normal
 
 
 def fit_scan(fitter, path: str | os.PathLike):

@@ -78,6 +78,18 @@ def test_a_folder_lists_its_scans_and_reads_their_labels(tmp_path, scan):
     assert len(scan.points) == len(scan.instance) == 8000
 
 
+def test_the_labelled_floor_faces_the_room_whichever_way_the_file_is_stored(tmp_path, scan):
+    np.testing.assert_allclose(scan.up, [0.0, 0.0, 1.0], atol=1e-6)
+    vert = np.load(tmp_path / "scene0000_00_vert.npy")
+    for turn, up in (((1.0, -1.0, -1.0), (0.0, 0.0, -1.0)), ((1.0, 1.0, 1.0), (0.0, 0.0, 1.0))):
+        np.save(tmp_path / "scene0000_00_vert.npy", vert * np.array([*turn, 1.0, 1.0, 1.0], np.float32))
+        np.testing.assert_allclose(read_truth(tmp_path, "scene0000_00").up, up, atol=1e-6)
+    yup = vert.copy()
+    yup[:, [1, 2]] = vert[:, [2, 1]]  # stored y up
+    np.save(tmp_path / "scene0000_00_vert.npy", yup)
+    np.testing.assert_allclose(read_truth(tmp_path, "scene0000_00").up, [0.0, 1.0, 0.0], atol=1e-6)
+
+
 def test_the_labelled_boxes_themselves_score_full_marks(scan):
     row = scan_metrics(_fit(scan.boxes, cuboids=scan.boxes), scan)
     for key in (
