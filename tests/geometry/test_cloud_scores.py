@@ -383,6 +383,8 @@ def test_the_confidence_is_the_clearer_of_the_scores_and_the_open_floor():
     scores = np.array([0.10, 0.0, 0.06, 0.04, 0.0, 0.0])
     # by score 1 - 0.06 / 0.10 = 0.4; by margin (0.10 against the next axis's 0.06 - 0.04) 0.8
     assert _confidence(scores, 0) == pytest.approx(0.8)
+    # a margin of exactly OPEN_FLOOR counts: 1 - 0.02 / 0.07 rather than the scores' 1 - 0.06 / 0.07
+    assert _confidence(np.array([0.07, 0.0, 0.06, 0.04, 0.0, 0.0]), 0) == pytest.approx(5 / 7)
     # a margin of 0.05 is no floor open above: the scores alone, and the wall outscores it
     assert _confidence(np.array([0.05, 0.0, 0.06, 0.045, 0.0, 0.0]), 0) == 0.0
     # a ceiling as large as the floor: no margin, the scores alone
