@@ -21,7 +21,6 @@ from cuboidcli.geometry.cloud import (
     settle_axis,
     voxel_groups,
 )
-from cuboidcli.geometry.free_side import _cone
 
 N = 10_000
 X, Y, Z = np.eye(3)
@@ -194,21 +193,6 @@ def test_an_axis_settles_on_twenty_or_more_surfaces_of_either_sign():
     # a few normals 22 degrees to the other side pull the first, widest cone; the narrower ones drop them
     normals = np.concatenate([np.tile(axis, (40, 1)), np.tile(tilted(-22.0), (10, 1))])
     assert np.allclose(settle_axis(normals, Z), axis, atol=1e-12)
-
-
-def test_a_cone_is_the_normal_and_four_directions_at_its_angle():
-    rng = np.random.default_rng(6)
-    n = rng.normal(size=(50, 3))
-    n /= np.linalg.norm(n, axis=1, keepdims=True)
-    n[0] = [1.0, 0.0, 0.0]  # along the first helper axis
-    for angle in (30.0, 10.0):
-        dirs = _cone(n, angle)
-        assert dirs.shape == (50, 5, 3) and np.allclose(dirs[:, 0], n)
-        assert np.allclose(np.linalg.norm(dirs, axis=2), 1.0)
-        assert np.allclose(np.einsum("nkj,nj->nk", dirs[:, 1:], n), np.cos(np.deg2rad(angle)))
-        tilt = dirs[:, 1:] - np.cos(np.deg2rad(angle)) * n[:, None]
-        assert np.allclose(tilt[:, 0], -tilt[:, 1]) and np.allclose(tilt[:, 2], -tilt[:, 3])
-        assert np.allclose(np.einsum("nj,nj->n", tilt[:, 0], tilt[:, 2]), 0.0)  # two perpendicular tilts
 
 
 def test_the_axes_start_with_up_on_every_path():

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cuboidcli.geometry.free_side import _free_lengths, free_side_normals
+from cuboidcli.geometry.free_side import _cone, _free_lengths, free_side_normals
 
 INSIDE = np.array([3.6, 2.0, 1.5])
 
@@ -85,3 +85,18 @@ def test_rays_stop_at_occupied_cells_on_every_axis_and_side():
     _free_lengths(point, dirs, occupied, np.zeros(3), 0.1, 0.2, 2.0, out)
     # half-cell steps from 0.2 m: at t = 0.95 the ray is at 0.1 m, which rounds into the first cell
     assert out[0].tolist() == pytest.approx([0.95, 0.95, 0.95])
+
+
+def test_a_cone_is_the_normal_and_four_directions_at_its_angle():
+    rng = np.random.default_rng(6)
+    n = rng.normal(size=(50, 3))
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    n[0] = [1.0, 0.0, 0.0]  # along the first helper axis
+    for angle in (30.0, 10.0):
+        dirs = _cone(n, angle)
+        assert dirs.shape == (50, 5, 3) and np.allclose(dirs[:, 0], n)
+        assert np.allclose(np.linalg.norm(dirs, axis=2), 1.0)
+        assert np.allclose(np.einsum("nkj,nj->nk", dirs[:, 1:], n), np.cos(np.deg2rad(angle)))
+        tilt = dirs[:, 1:] - np.cos(np.deg2rad(angle)) * n[:, None]
+        assert np.allclose(tilt[:, 0], -tilt[:, 1]) and np.allclose(tilt[:, 2], -tilt[:, 3])
+        assert np.allclose(np.einsum("nj,nj->n", tilt[:, 0], tilt[:, 2]), 0.0)  # two perpendicular tilts
