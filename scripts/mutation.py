@@ -188,6 +188,7 @@ TARGETS = (
         None,
         ("tests/geometry/test_free_side.py", "tests/geometry/test_cloud_more.py"),
     ),
+    Target("consensus", "cuboidcli/fitting/consensus.py", None, ("tests/fitting/test_consensus.py",)),
     Target(
         "graph",
         "cuboidcli/geometry/graph.py",

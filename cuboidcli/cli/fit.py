@@ -158,6 +158,7 @@ def fit(
         more="Given as z, y, -y, x or x,y,z.",
     ),
     voxel_m: float = config_option("voxel_m"),
+    object_fits: int = config_option("object_fits"),
     workers: int = workers_option(),
     ray: bool = ray_option(),
     ray_address: str = ray_address_option(),
@@ -177,7 +178,7 @@ def fit(
         hypotheses=hypotheses, max_cuboids=max_cuboids, sampler=sampler, solver=solver, seed=seed,
         device=device, theta=theta, grid_step=grid_step, occlusion_aware=occlusion_aware, refine=refine,
         local_fraction=local_fraction, max_batches=max_batches, align=align, gravity_down=gravity_down,
-        slab_max_m=slab_max_m, visibility=visibility, up=up, voxel_m=voxel_m,
+        slab_max_m=slab_max_m, visibility=visibility, up=up, voxel_m=voxel_m, object_fits=object_fits,
     )  # fmt: skip
     depth_model_options = dict(
         model=depth_model, kind=depth_model_kind, scale=relative_scale, shift=relative_shift,

@@ -14,6 +14,7 @@ from cuboidcli.load import SOURCES, LoadOptions
 #: FitConfig settings only one kind of input reads: given for the other, they are refused.
 KIND_ONLY = {
     "voxel_m": "room",
+    "object_fits": "room",
     "visibility": "room",
     "up": "room",
     "grid_step": "frame",

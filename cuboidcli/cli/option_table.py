@@ -66,7 +66,7 @@ def fitting(*names: str) -> dict[str, Check]:
 
 FIT: dict[str, Check] = {
     **fitting("hypotheses", "max_cuboids", "sampler", "solver", "seed", "theta", "grid_step"),
-    **fitting("local_fraction", "max_batches", "align", "slab_max_m", "visibility", "voxel_m"),
+    **fitting("local_fraction", "max_batches", "align", "slab_max_m", "visibility", "voxel_m", "object_fits"),
     "device": DEVICE,
     "gravity_down": text("gx,gy,gz (3 finite numbers, not all 0) or level", _gravity),
     "up": text("z, y, -y, x or x,y,z (3 finite numbers, not all 0)", _up),

@@ -27,7 +27,7 @@ KIND_DEFAULTS: dict[str, dict[str, int]] = {
     "room": {"max_cuboids": 60, "fit_points": 40000},
 }
 #: Settings only a room reads; a frame's result leaves them out (:meth:`FitConfig.to_dict`).
-ROOM_ONLY = ("voxel_m", "visibility", "up", "virtual_view_m")
+ROOM_ONLY = ("voxel_m", "visibility", "up", "virtual_view_m", "object_fits")
 
 
 @dataclass(frozen=True)
@@ -196,6 +196,10 @@ class FitConfig:
     virtual_view_m: float = 0.5
     """A bare cloud's points are taken as seen from this far out of their surface, on the side rays cross
     empty space (else towards the inside of the room) (m)."""
+    object_fits: int = 5
+    """A room: fits whose object boxes vote; a box a majority of them find is kept (1 = one fit's boxes).
+
+    The cuboids are the first fit's; the others cost a fit each (fitting/consensus.py)."""
     backend: str = "auto"
     """Kernels that score hypotheses and refine winners: ``auto`` (numba on the CPU, torch on a GPU),
     ``numba`` (the fused CPU loops; refused on a GPU) or ``torch`` (the reference kernels, any device).
@@ -326,6 +330,7 @@ CHECKS: dict[str, Check] = {
     "visibility": choice(VISIBILITY_CHOICES, _CHOOSE_LISTED),
     "up": vector("a unit vector of 3 finite numbers", _unit_vector),
     "virtual_view_m": _METRES,
+    "object_fits": whole(1, 99),
     "backend": choice(BACKENDS, "{name} must be one of {listed}, got {value}"),
 }
 

@@ -115,8 +115,10 @@ SCORE_FLOATING = 0.7
 @dataclass
 class SceneObject:
     """One object of a room: its upright box (kind ``object``), the cuboids (indices in selection order) that
-    seeded it (none for points no cuboid explains), how many fitting points it holds, its score in [0, 1]
-    (:func:`object_score`) and what it is: ``door`` (steps 8-9), ``sink`` (step 7) or ``object``."""
+    seeded it (none for points no cuboid explains, or for a box that the fits voting on the boxes found and
+    the returned fit did not: :mod:`~cuboidcli.fitting.consensus`), how many fitting points it holds, its
+    score in [0, 1] (:func:`object_score`) and what it is: ``door`` (steps 8-9), ``sink`` (step 7) or
+    ``object``."""
 
     box: Cuboid
     cuboids: tuple[int, ...]

@@ -34,10 +34,14 @@ from cuboidcli.geometry import arrays
 from cuboidcli.geometry.arrays import device_of, float32, numpy64
 from cuboidcli.geometry.backends import resolve_backend
 from cuboidcli.geometry.cloud import RoomUp
-from cuboidcli.geometry.gravity import Gravity
+from cuboidcli.geometry.gravity import Gravity, level_frame
 from cuboidcli.geometry.inlier import combine
 from cuboidcli.sampling import Sampler, SamplingContext
 from cuboidcli.solvers.base import CuboidSolver
+
+#: The fits that vote on a room's object boxes besides the returned one draw 1 / VOTER_SHARE of its
+#: hypotheses per step.
+VOTER_SHARE = 2
 
 ProgressFn = Callable[[int, int, float], None]
 """progress(step, cuboids_so_far, last_gain) is called after every step."""
@@ -260,17 +264,8 @@ def estimate(
     info.gravity = inp.gravity
     info.warnings = [*inp.warnings, *info.warnings]
     points = numpy64(inp.points)
-    for c in cuboids:
-        c.kind = cuboid_kind(points, c, inp.down, inp.viewpoint)
+    name_kinds(cuboids, points, inp)
     room = inp.room
-    if room is not None:
-        from cuboidcli.fitting import room as room_rules
-
-        room_rules.low_walls_are_furniture(cuboids, points, room.up.up)
-        seen = room_rules.BEYOND_SHARE if inp.views == "none" else room_rules.BEYOND_SHARE_SEEN
-        room_rules.beyond_the_room_is_wall(cuboids, points, room.up.up, seen)
-        room_rules.open_behind_is_wall(cuboids, points, room.up.up, inp.viewpoint)
-        room_rules.low_slabs_are_floor(cuboids, room.up.up)
     timing["total"] = time.perf_counter() - inp.started
     t = time.perf_counter()
     backend = inp.backend or backend_for(config.backend, device_of(inp.points))
@@ -288,10 +283,55 @@ def estimate(
         t = time.perf_counter()
         info.objects = group_objects(points, labels, cuboids, room.up.up, room.voxel_m, room.colors)
         timing["objects"] = time.perf_counter() - t
+        if config.object_fits > 1:  # more fits vote on the object boxes (fitting/consensus.py)
+            t = time.perf_counter()
+            votes = (inp, config, points, info.objects)
+            info.objects = _agreed(*votes, solver, sampler, progress, info.iterations)
+            timing["object_fits"] = time.perf_counter() - t
+            timing["total"] += timing["object_fits"]
         info.fit_points, info.room_up, info.voxel_m = points, room.up, room.voxel_m
         info.visibility, info.viewpoint = room.visibility, inp.viewpoint
     info.timing_s = {k: round(v, 6) for k, v in timing.items()}
     return cuboids, info
+
+
+def name_kinds(cuboids: list[Cuboid], points: np.ndarray, inp: FitInput) -> None:
+    """Name each cuboid's kind in place (:func:`~cuboidcli.fitting.shell.cuboid_kind`), then, for a room,
+    apply the room's shell rules (:mod:`cuboidcli.fitting.room`)."""
+    for c in cuboids:
+        c.kind = cuboid_kind(points, c, inp.down, inp.viewpoint)
+    room = inp.room
+    if room is not None:
+        from cuboidcli.fitting import room as room_rules
+
+        room_rules.low_walls_are_furniture(cuboids, points, room.up.up)
+        seen = room_rules.BEYOND_SHARE if inp.views == "none" else room_rules.BEYOND_SHARE_SEEN
+        room_rules.beyond_the_room_is_wall(cuboids, points, room.up.up, seen)
+        room_rules.open_behind_is_wall(cuboids, points, room.up.up, inp.viewpoint)
+        room_rules.low_slabs_are_floor(cuboids, room.up.up)
+
+
+def _agreed(inp, config, points, first, solver, sampler, progress, steps) -> list[SceneObject]:
+    """The object boxes that a majority of ``config.object_fits`` fits of a room agree on: the first fit's
+    objects ``first`` and those of more fits with seeds drawn from ``config.seed``
+    (:func:`~cuboidcli.fitting.consensus.agreed_objects`). Their steps go on from ``steps`` in
+    ``progress``."""
+    from cuboidcli.fitting.consensus import agreed_objects
+
+    room = inp.room
+    backend = inp.backend or backend_for(config.backend, device_of(inp.points))
+    fits = [first]
+    for k in range(1, config.object_fits):
+        seed = int(np.random.SeedSequence([config.seed, k]).generate_state(1)[0])
+        # half the hypotheses: the object boxes of such fits are as good, in half the time (docs/scenes.md)
+        other = replace(config, seed=seed, hypotheses=max(1, config.hypotheses // VOTER_SHARE))
+        shifted = None if progress is None else (lambda it, n, gain, s=steps: progress(s + it, n, gain))
+        cuboids, info = fit_points(inp, other, solver, sampler, shifted, {})
+        steps += info.iterations
+        name_kinds(cuboids, points, inp)
+        labels = assign_points(inp.points, cuboids, score_params(other), backend)
+        fits.append(group_objects(points, labels, cuboids, room.up.up, room.voxel_m, room.colors))
+    return agreed_objects(fits, level_frame(room.up.up), config.object_fits // 2 + 1)
 
 
 def arrays_for(inp: FitInput, config: FitConfig, solver, sampler) -> FitInput:

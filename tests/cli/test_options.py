@@ -34,7 +34,7 @@ EXPOSED = {
     "fit": {
         "hypotheses", "max_cuboids", "sampler", "solver", "seed", "device", "theta", "grid_step",
         "occlusion_aware", "refine", "local_fraction", "max_batches", "align", "gravity_down", "slab_max_m",
-        "visibility", "up", "voxel_m",
+        "visibility", "up", "voxel_m", "object_fits",
     },
     "evaluate": {
         "sampler", "solver", "hypotheses", "max_cuboids", "grid_step", "occlusion_aware", "refine", "align",

@@ -50,7 +50,7 @@ def scanned_room(seed: int = 0) -> np.ndarray:
 def parts():
     from cuboidcli.factories import make_sampler, make_solver
 
-    config = FitConfig(seed=2)
+    config = FitConfig(seed=2, object_fits=1)  # one fit: these tests are about its cuboids and rules
     return config, make_solver(config, None, None, "cpu"), make_sampler("sequential", None, "cpu")
 
 
