@@ -94,3 +94,16 @@ def test_object_fits_is_a_room_setting():
     assert "object_fits" in FitConfig().to_dict("room") and "object_fits" not in FitConfig().to_dict("frame")
     with pytest.raises(ValueError, match="object_fits"):
         FitConfig(object_fits=0).check(parts=False)
+
+
+def test_a_fit_lends_its_most_overlapping_box_and_the_objects_come_most_points_first():
+    table = _box(0, 0)
+    near, nearer = _box(0.55, 0), _box(0.15, 0)  # IoU 0.29 and 0.74 with the table
+    assert 0.25 < upright_iou(table, near, R) < 0.3 and upright_iou(table, nearer, R) > 0.7
+    fits = [[_obj(table, 0.9, points=50)], [_obj(near, 0.1, points=70), _obj(nearer, 0.1, points=60)]]
+    # the table takes the nearer box (of two it stands for itself, the one looked at first); the other box
+    # of the second fit stays alone: kept when one fit is enough, most points first
+    assert [o.points for o in agreed_objects(fits, R, need=1)] == [70, 50]
+    assert [o.points for o in agreed_objects(fits, R, need=2)] == [50]
+    # an overlap of 0.29 is enough to agree
+    assert [o.points for o in agreed_objects([[_obj(table, points=50)], [_obj(near)]], R, need=2)] == [50]
